@@ -1,0 +1,32 @@
+# SPDX-License-Identifier: Apache-2.0
+# Warnings, sanitizers and the SIMD baseline, applied to every target of the project through
+# the interface target wallar_build_flags (not globally, so third-party code is untouched).
+
+add_library(wallar_build_flags INTERFACE)
+target_compile_options(wallar_build_flags INTERFACE -Wall -Wextra -Werror -Wshadow
+                                                    -Wnon-virtual-dtor -Wformat=2)
+# Debug builds catch uninitialised Eigen matrices (STYLE.md 13).
+target_compile_definitions(wallar_build_flags INTERFACE
+                           $<$<CONFIG:Debug>:EIGEN_INITIALIZE_MATRICES_BY_NAN>)
+
+# SIMD baseline per target architecture; never -march=native (the binary must run on any board
+# of the architecture). Highway dispatches wider units at run time on top of this baseline.
+if(NOT DEFINED WALLAR_SIMD_FLAGS)
+  if(CMAKE_SYSTEM_PROCESSOR MATCHES "^(aarch64|arm64)$")
+    set(WALLAR_SIMD_FLAGS "-march=armv8-a")  # NEON (ASIMD) is part of ARMv8-A
+  elseif(CMAKE_SYSTEM_PROCESSOR MATCHES "^(x86_64|AMD64)$")
+    set(WALLAR_SIMD_FLAGS "-march=x86-64-v2")  # SSE4.2/POPCNT, any x86-64 of the last decade
+  else()
+    set(WALLAR_SIMD_FLAGS "")
+  endif()
+endif()
+set(WALLAR_SIMD_FLAGS "${WALLAR_SIMD_FLAGS}" CACHE STRING "SIMD baseline flags for this target")
+separate_arguments(_wallar_simd UNIX_COMMAND "${WALLAR_SIMD_FLAGS}")
+target_compile_options(wallar_build_flags INTERFACE ${_wallar_simd})
+
+if(WALLAR_SANITIZE)
+  string(REPLACE ";" "," _wallar_san "${WALLAR_SANITIZE}")
+  add_compile_options(-fsanitize=${_wallar_san} -fno-omit-frame-pointer
+                      -fno-sanitize-recover=all)
+  add_link_options(-fsanitize=${_wallar_san})
+endif()

@@ -1,0 +1,45 @@
+# SPDX-License-Identifier: Apache-2.0
+# Third-party dependencies, all from Debian 12 packages (tools/setup installs them). The same
+# file serves the host build and the aarch64 cross-build against Debian's arm64 multiarch
+# packages; where an arm64 -dev package cannot be installed beside its amd64 twin (OpenCV's
+# CMake config lives in libopencv-dev, which drags in conflicting modules), imported targets
+# are made from the multiarch libraries directly.
+
+find_package(Threads REQUIRED)
+find_package(Eigen3 3.3 REQUIRED NO_MODULE)
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(YAML REQUIRED IMPORTED_TARGET yaml-0.1)
+pkg_check_modules(PNG REQUIRED IMPORTED_TARGET libpng)
+find_package(CLI11 CONFIG REQUIRED)
+find_package(nlohmann_json 3.10 REQUIRED)
+
+set(WALLAR_OPENCV_MODULES core imgproc)
+find_package(OpenCV QUIET COMPONENTS ${WALLAR_OPENCV_MODULES})
+if(OpenCV_FOUND)
+  set(WALLAR_OPENCV_LIBS ${OpenCV_LIBS})
+else()
+  # Cross-build: link the arm64 multiarch libraries; headers are architecture independent
+  # except cvconfig.h, which lives in the multiarch include directory.
+  find_path(WALLAR_OPENCV_INCLUDE opencv2/core.hpp PATH_SUFFIXES opencv4 REQUIRED)
+  find_path(WALLAR_OPENCV_ARCH_INCLUDE opencv2/cvconfig.h
+            PATHS /usr/include/${CMAKE_LIBRARY_ARCHITECTURE}/opencv4 NO_DEFAULT_PATH REQUIRED)
+  set(WALLAR_OPENCV_LIBS)
+  foreach(module IN LISTS WALLAR_OPENCV_MODULES)
+    find_library(WALLAR_OPENCV_${module} NAMES opencv_${module} libopencv_${module}.so.406
+                 REQUIRED)
+    add_library(opencv_${module} SHARED IMPORTED)
+    set_target_properties(opencv_${module} PROPERTIES
+      IMPORTED_LOCATION "${WALLAR_OPENCV_${module}}"
+      INTERFACE_INCLUDE_DIRECTORIES "${WALLAR_OPENCV_ARCH_INCLUDE};${WALLAR_OPENCV_INCLUDE}")
+    list(APPEND WALLAR_OPENCV_LIBS opencv_${module})
+  endforeach()
+  message(STATUS "OpenCV: multiarch libraries for ${CMAKE_LIBRARY_ARCHITECTURE}")
+endif()
+
+if(WALLAR_BUILD_TESTS)
+  find_package(GTest REQUIRED)
+  include(GoogleTest)
+endif()
+if(WALLAR_BUILD_BENCH)
+  find_package(benchmark REQUIRED)
+endif()

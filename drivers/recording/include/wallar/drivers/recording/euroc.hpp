@@ -1,0 +1,133 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file euroc.hpp
+/// @brief Sensor recordings in the EuRoC/ASL layout: reader, writer and calibration files.
+///
+/// Layout (what Kalibr, Basalt, ORB-SLAM3 and OpenVINS read):
+///   ROOT/mav0/body.yaml
+///   ROOT/mav0/cam{0,1}/data.csv      "#timestamp [ns],filename"
+///   ROOT/mav0/cam{0,1}/data/T.png    8-bit gray
+///   ROOT/mav0/cam{0,1}/sensor.yaml   intrinsics, distortion, T_BS, resolution, rate_hz
+///   ROOT/mav0/imu0/data.csv          t, w_xyz [rad/s], a_xyz [m/s^2]
+///   ROOT/mav0/imu0/sensor.yaml
+///   ROOT/mav0/state_groundtruth_estimate0/data.csv  (optional) t, p, q(wxyz), v, bw, ba
+///
+/// Threading: EurocRecording is immutable after reading; EurocWriter is used by one thread.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "wallar/core/calibration.hpp"
+#include "wallar/core/image.hpp"
+#include "wallar/core/imu_sample.hpp"
+#include "wallar/core/pose.hpp"
+#include "wallar/core/stereo_frame.hpp"
+
+namespace wallar::recording {
+
+/// One row of a camera's data.csv.
+struct FrameEntry {
+  TimeNs t_ns = 0;
+  std::string filename;  //!< relative to the camera's data/ folder
+  int line = 0;          //!< line in data.csv, for error messages
+};
+
+struct CameraStream {
+  std::filesystem::path dir;  //!< .../mav0/camN
+  CameraCalibration calib;
+  std::vector<FrameEntry> frames;  //!< strictly increasing t_ns
+
+  [[nodiscard]] std::filesystem::path image_path(const FrameEntry& f) const {
+    return dir / "data" / f.filename;
+  }
+};
+
+/// One ground-truth row: body pose in the world (Vicon) frame, velocity, biases.
+struct GroundTruthState {
+  TimeNs t_ns = 0;
+  SE3d T_world_body = SE3d::Identity();
+  Eigen::Vector3d vel_world_m_s = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gyro_bias_rad_s = Eigen::Vector3d::Zero();
+  Eigen::Vector3d accel_bias_m_s2 = Eigen::Vector3d::Zero();
+};
+
+struct EurocRecording {
+  std::filesystem::path mav0;  //!< the folder holding cam0, cam1, imu0
+  std::array<CameraStream, 2> cams;
+  std::vector<ImuSample> imu;  //!< strictly increasing t_ns
+  ImuCalibration imu_calib;
+  std::vector<GroundTruthState> ground_truth;  //!< empty when the recording has none
+
+  [[nodiscard]] RigCalibration rig() const {
+    return RigCalibration{{cams[0].calib, cams[1].calib}, imu_calib};
+  }
+};
+
+struct ReadOptions {
+  /// Check that every image file named in data.csv exists (stat only, no decoding).
+  bool check_image_files = true;
+};
+
+/// Reads a recording from ROOT or ROOT/mav0. Throws InputError naming the file and line of the
+/// first problem: missing folder or file, short or malformed row, non-numeric field,
+/// non-monotonic or duplicate timestamps, missing calibration key, wrong matrix size.
+EurocRecording read_euroc(const std::filesystem::path& root, const ReadOptions& options = {});
+
+/// Parses one CSV of each kind (exposed for tests and fuzzing). `name` appears in errors.
+std::vector<FrameEntry> parse_camera_csv(std::string_view text, const std::string& name);
+std::vector<ImuSample> parse_imu_csv(std::string_view text, const std::string& name);
+std::vector<GroundTruthState> parse_ground_truth_csv(std::string_view text,
+                                                     const std::string& name);
+
+/// Reads sensor.yaml files (EuRoC's own, which is OpenCV-flavoured YAML).
+CameraCalibration read_camera_sensor_yaml(const std::filesystem::path& path);
+ImuCalibration read_imu_sensor_yaml(const std::filesystem::path& path);
+CameraCalibration parse_camera_sensor_yaml(std::string_view text, const std::string& name);
+
+/// Loads an 8-bit gray PNG into a fresh buffer. Throws InputError when the file is missing,
+/// unreadable, or (when expected sizes are > 0) not expected_width x expected_height.
+Image load_png_gray(const std::filesystem::path& path, int expected_width = 0,
+                    int expected_height = 0);
+/// Writes an 8-bit gray image as PNG; throws InputError on failure.
+void save_png_gray(const std::filesystem::path& path, const Image& image);
+
+/// Writes a recording in the EuRoC layout as samples arrive. Every image is written to a
+/// temporary name, then renamed, before its CSV row is appended and flushed, so a recording
+/// cut off by power loss is still readable up to its last complete row. close() fsyncs.
+class EurocWriter {
+ public:
+  /// Creates ROOT/mav0/... and writes body.yaml and the sensor.yaml files.
+  EurocWriter(const std::filesystem::path& root, const RigCalibration& rig);
+  ~EurocWriter();
+  EurocWriter(const EurocWriter&) = delete;
+  EurocWriter& operator=(const EurocWriter&) = delete;
+
+  void write_imu(const ImuSample& sample);
+  void write_camera(int cam, const CameraFrame& frame);
+  void write_stereo(const StereoFrame& frame) {
+    write_camera(0, frame.left);
+    write_camera(1, frame.right);
+  }
+  /// Flushes and fsyncs every file; further writes are errors.
+  void close();
+
+  [[nodiscard]] std::size_t imu_written() const { return imu_rows_; }
+  [[nodiscard]] std::size_t frames_written(int cam) const { return cam_rows_[cam]; }
+
+ private:
+  std::filesystem::path mav0_;
+  int imu_fd_ = -1;                 //!< imu0/data.csv, O_APPEND
+  std::array<int, 2> cam_fd_{-1, -1};  //!< camN/data.csv, O_APPEND
+  std::size_t imu_rows_ = 0;
+  std::array<std::size_t, 2> cam_rows_{0, 0};
+  bool closed_ = false;
+};
+
+/// Writes EuRoC sensor.yaml files (readable by read_*_sensor_yaml and by Kalibr/Basalt tools).
+void write_camera_sensor_yaml(const std::filesystem::path& path, const CameraCalibration& calib);
+void write_imu_sensor_yaml(const std::filesystem::path& path, const ImuCalibration& calib);
+
+}  // namespace wallar::recording

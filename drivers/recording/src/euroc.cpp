@@ -1,0 +1,337 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file euroc.cpp
+/// @brief EuRoC/ASL recording reader and writer.
+#include "wallar/drivers/recording/euroc.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <sstream>
+
+#include "wallar/core/error.hpp"
+#include "wallar/drivers/config/yaml.hpp"
+#include "wallar/drivers/recording/csv.hpp"
+
+namespace wallar::recording {
+namespace fs = std::filesystem;
+namespace {
+
+constexpr const char* kCamHeader = "#timestamp [ns],filename\n";
+constexpr const char* kImuHeader =
+    "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
+    "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n";
+
+// Timestamps must increase strictly: a repeat or a step back is a broken recording.
+void check_monotonic(const CsvRow& row, TimeNs previous_ns, TimeNs t_ns, bool first) {
+  if (first) return;
+  if (t_ns == previous_ns) row.fail("duplicate timestamp " + std::to_string(t_ns));
+  if (t_ns < previous_ns) {
+    row.fail("timestamp " + std::to_string(t_ns) + " goes back from " +
+             std::to_string(previous_ns) + " (non-monotonic)");
+  }
+}
+
+SE3d read_T(const config::YamlNode& node) {
+  const Eigen::Matrix4d m = node.as_matrix(4, 4);
+  const Eigen::Matrix3d R = m.topLeftCorner<3, 3>();
+  // A rotation must be orthonormal with det +1; a typo in a calibration file is caught here.
+  if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-3 ||
+      R.determinant() < 0.0) {
+    node.fail("is not a rigid transform (rotation part not orthonormal)");
+  }
+  SE3d T = SE3d::Identity();
+  T.linear() = R;
+  T.translation() = m.topRightCorner<3, 1>();
+  return T;
+}
+
+void write_all(int fd, const std::string& text, const fs::path& path) {
+  const char* p = text.data();
+  std::size_t left = text.size();
+  while (left > 0) {
+    const ssize_t n = ::write(fd, p, left);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      throw_input_error(path.string(), 0, std::string("write failed: ") + std::strerror(errno));
+    }
+    p += n;
+    left -= static_cast<std::size_t>(n);
+  }
+}
+
+int open_csv(const fs::path& path, const char* header) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw_input_error(path.string(), 0, std::string("cannot create: ") + std::strerror(errno));
+  write_all(fd, header, path);
+  return fd;
+}
+
+std::string format_T_BS(const SE3d& T) {
+  std::ostringstream s;
+  s.precision(17);
+  s << "T_BS:\n  cols: 4\n  rows: 4\n  data: [";
+  const Eigen::Matrix4d m = T.matrix();
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j) {
+      s << format_euroc_double(m(i, j)) << (i == 3 && j == 3 ? "]\n" : ", ");
+    }
+  }
+  return s.str();
+}
+
+void write_text_file(const fs::path& path, const std::string& text) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw_input_error(path.string(), 0, std::string("cannot create: ") + std::strerror(errno));
+  write_all(fd, text, path);
+  ::fsync(fd);
+  ::close(fd);
+}
+
+}  // namespace
+
+std::vector<FrameEntry> parse_camera_csv(std::string_view text, const std::string& name) {
+  std::vector<FrameEntry> frames;
+  parse_csv(text, name, 2, [&](const CsvRow& row) {
+    const TimeNs t_ns = row.int64_at(0, "timestamp");
+    check_monotonic(row, frames.empty() ? 0 : frames.back().t_ns, t_ns, frames.empty());
+    const std::string_view file = row.fields[1];
+    if (file.empty() || file.find('/') != std::string_view::npos || file == "." || file == "..") {
+      row.fail("filename must be a plain file name, got '" + std::string(file.substr(0, 64)) + "'");
+    }
+    frames.push_back(FrameEntry{t_ns, std::string(file), row.line});
+  });
+  return frames;
+}
+
+std::vector<ImuSample> parse_imu_csv(std::string_view text, const std::string& name) {
+  std::vector<ImuSample> samples;
+  parse_csv(text, name, 7, [&](const CsvRow& row) {
+    ImuSample s;
+    s.t_ns = row.int64_at(0, "timestamp");
+    check_monotonic(row, samples.empty() ? 0 : samples.back().t_ns, s.t_ns, samples.empty());
+    s.gyro_rad_s = {row.double_at(1, "w_x"), row.double_at(2, "w_y"), row.double_at(3, "w_z")};
+    s.accel_m_s2 = {row.double_at(4, "a_x"), row.double_at(5, "a_y"), row.double_at(6, "a_z")};
+    samples.push_back(s);
+  });
+  return samples;
+}
+
+std::vector<GroundTruthState> parse_ground_truth_csv(std::string_view text,
+                                                     const std::string& name) {
+  std::vector<GroundTruthState> states;
+  parse_csv(text, name, 17, [&](const CsvRow& row) {
+    GroundTruthState g;
+    g.t_ns = row.int64_at(0, "timestamp");
+    check_monotonic(row, states.empty() ? 0 : states.back().t_ns, g.t_ns, states.empty());
+    const Eigen::Vector3d p(row.double_at(1, "p_x"), row.double_at(2, "p_y"),
+                            row.double_at(3, "p_z"));
+    const Eigen::Quaterniond q(row.double_at(4, "q_w"), row.double_at(5, "q_x"),
+                               row.double_at(6, "q_y"), row.double_at(7, "q_z"));
+    if (std::abs(q.norm() - 1.0) > 1e-2) row.fail("quaternion is not unit length");
+    g.T_world_body = make_se3(q, p);
+    g.vel_world_m_s = {row.double_at(8, "v_x"), row.double_at(9, "v_y"), row.double_at(10, "v_z")};
+    g.gyro_bias_rad_s = {row.double_at(11, "bw_x"), row.double_at(12, "bw_y"),
+                         row.double_at(13, "bw_z")};
+    g.accel_bias_m_s2 = {row.double_at(14, "ba_x"), row.double_at(15, "ba_y"),
+                         row.double_at(16, "ba_z")};
+    states.push_back(g);
+  });
+  return states;
+}
+
+CameraCalibration parse_camera_sensor_yaml(std::string_view text, const std::string& name) {
+  const config::YamlDocument doc = config::YamlDocument::parse(text, name);
+  const config::YamlNode& root = doc.root();
+  if (!root.is_map()) root.fail("must be a map of sensor settings");
+  CameraCalibration c;
+  c.T_body_cam = read_T(root.at("T_BS"));
+  c.rate_hz = root.at("rate_hz").as_double();
+  const std::vector<double> res = root.at("resolution").as_doubles(2);
+  c.width_px = static_cast<int>(res[0]);
+  c.height_px = static_cast<int>(res[1]);
+  if (c.width_px <= 0 || c.height_px <= 0 || c.width_px > 16384 || c.height_px > 16384) {
+    root.at("resolution").fail("must be two positive pixel counts");
+  }
+  const std::string model = root.get_string("camera_model", "pinhole");
+  if (model != "pinhole") root.at("camera_model").fail("must be 'pinhole', got '" + model + "'");
+  const std::vector<double> k = root.at("intrinsics").as_doubles(4);
+  c.fx = k[0];
+  c.fy = k[1];
+  c.cx = k[2];
+  c.cy = k[3];
+  if (!(c.fx > 0.0 && c.fy > 0.0)) root.at("intrinsics").fail("focal lengths must be positive");
+  c.distortion_model = root.get_string("distortion_model", "radial-tangential");
+  if (c.distortion_model == "radial-tangential" || c.distortion_model == "radtan") {
+    c.distortion_model = "radial-tangential";
+    c.distortion = root.at("distortion_coefficients").as_doubles(4);
+  } else if (c.distortion_model == "equidistant") {
+    c.distortion = root.at("distortion_coefficients").as_doubles(4);
+  } else {
+    root.at("distortion_model").fail("must be radial-tangential or equidistant");
+  }
+  if (c.rate_hz <= 0.0) root.at("rate_hz").fail("must be positive");
+  return c;
+}
+
+CameraCalibration read_camera_sensor_yaml(const fs::path& path) {
+  return parse_camera_sensor_yaml(read_text_file(path), path.string());
+}
+
+ImuCalibration read_imu_sensor_yaml(const fs::path& path) {
+  const config::YamlDocument doc = config::YamlDocument::load_file(path);
+  const config::YamlNode& root = doc.root();
+  if (!root.is_map()) root.fail("must be a map of sensor settings");
+  ImuCalibration c;
+  c.T_body_imu = read_T(root.at("T_BS"));
+  c.rate_hz = root.at("rate_hz").as_double();
+  if (c.rate_hz <= 0.0) root.at("rate_hz").fail("must be positive");
+  c.gyro_noise_density = root.at("gyroscope_noise_density").as_double();
+  c.gyro_random_walk = root.at("gyroscope_random_walk").as_double();
+  c.accel_noise_density = root.at("accelerometer_noise_density").as_double();
+  c.accel_random_walk = root.at("accelerometer_random_walk").as_double();
+  return c;
+}
+
+EurocRecording read_euroc(const fs::path& root, const ReadOptions& options) {
+  std::error_code ec;
+  if (!fs::is_directory(root, ec)) throw_input_error(root.string(), 0, "no such recording folder");
+  EurocRecording rec;
+  rec.mav0 = fs::is_directory(root / "mav0", ec) ? root / "mav0" : root;
+  for (const char* sub : {"cam0", "cam1", "imu0"}) {
+    if (!fs::is_directory(rec.mav0 / sub, ec)) {
+      throw_input_error((rec.mav0 / sub).string(), 0,
+                        "missing folder (an EuRoC recording needs mav0/cam0, cam1 and imu0)");
+    }
+  }
+  for (int i = 0; i < 2; ++i) {
+    CameraStream& cam = rec.cams[static_cast<std::size_t>(i)];
+    cam.dir = rec.mav0 / ("cam" + std::to_string(i));
+    cam.calib = read_camera_sensor_yaml(cam.dir / "sensor.yaml");
+    cam.calib.name = "cam" + std::to_string(i);
+    const fs::path csv = cam.dir / "data.csv";
+    cam.frames = parse_camera_csv(read_text_file(csv), csv.string());
+    if (options.check_image_files) {
+      for (const FrameEntry& f : cam.frames) {
+        if (!fs::is_regular_file(cam.image_path(f), ec)) {
+          throw_input_error(csv.string(), f.line, "image file data/" + f.filename + " is missing");
+        }
+      }
+    }
+  }
+  const fs::path imu_csv = rec.mav0 / "imu0" / "data.csv";
+  rec.imu = parse_imu_csv(read_text_file(imu_csv), imu_csv.string());
+  rec.imu_calib = read_imu_sensor_yaml(rec.mav0 / "imu0" / "sensor.yaml");
+  const fs::path gt_csv = rec.mav0 / "state_groundtruth_estimate0" / "data.csv";
+  if (fs::exists(gt_csv, ec)) {
+    rec.ground_truth = parse_ground_truth_csv(read_text_file(gt_csv), gt_csv.string());
+  }
+  return rec;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Writer
+
+void write_camera_sensor_yaml(const fs::path& path, const CameraCalibration& c) {
+  std::ostringstream s;
+  s << "%YAML:1.0\n# General sensor definitions.\nsensor_type: camera\ncomment: " << c.name
+    << " (written by wallar)\n\n# Sensor extrinsics wrt. the body-frame.\n"
+    << format_T_BS(c.T_body_cam) << "\n# Camera specific definitions.\nrate_hz: "
+    << format_euroc_double(c.rate_hz) << "\nresolution: [" << c.width_px << ", " << c.height_px
+    << "]\ncamera_model: pinhole\nintrinsics: [" << format_euroc_double(c.fx) << ", "
+    << format_euroc_double(c.fy) << ", " << format_euroc_double(c.cx) << ", "
+    << format_euroc_double(c.cy) << "] #fu, fv, cu, cv\ndistortion_model: " << c.distortion_model
+    << "\ndistortion_coefficients: [";
+  for (std::size_t i = 0; i < c.distortion.size(); ++i) {
+    s << (i ? ", " : "") << format_euroc_double(c.distortion[i]);
+  }
+  s << "]\n";
+  write_text_file(path, s.str());
+}
+
+void write_imu_sensor_yaml(const fs::path& path, const ImuCalibration& c) {
+  std::ostringstream s;
+  s << "%YAML:1.0\nsensor_type: imu\ncomment: written by wallar\n\n"
+    << format_T_BS(c.T_body_imu) << "rate_hz: " << format_euroc_double(c.rate_hz)
+    << "\n\n# inertial sensor noise model parameters (static)\n"
+    << "gyroscope_noise_density: " << format_euroc_double(c.gyro_noise_density)
+    << "     # [ rad / s / sqrt(Hz) ]\n"
+    << "gyroscope_random_walk: " << format_euroc_double(c.gyro_random_walk)
+    << "       # [ rad / s^2 / sqrt(Hz) ]\n"
+    << "accelerometer_noise_density: " << format_euroc_double(c.accel_noise_density)
+    << "  # [ m / s^2 / sqrt(Hz) ]\n"
+    << "accelerometer_random_walk: " << format_euroc_double(c.accel_random_walk)
+    << "    # [ m / s^3 / sqrt(Hz) ]\n";
+  write_text_file(path, s.str());
+}
+
+EurocWriter::EurocWriter(const fs::path& root, const RigCalibration& rig) : mav0_(root / "mav0") {
+  std::error_code ec;
+  for (const char* sub : {"cam0/data", "cam1/data", "imu0"}) {
+    fs::create_directories(mav0_ / sub, ec);
+    if (ec) throw_input_error((mav0_ / sub).string(), 0, "cannot create folder: " + ec.message());
+  }
+  write_text_file(mav0_ / "body.yaml", "%YAML:1.0\ncomment: wallar headset rig\n");
+  for (int i = 0; i < 2; ++i) {
+    const fs::path dir = mav0_ / ("cam" + std::to_string(i));
+    write_camera_sensor_yaml(dir / "sensor.yaml", rig.cams[static_cast<std::size_t>(i)]);
+    cam_fd_[static_cast<std::size_t>(i)] = open_csv(dir / "data.csv", kCamHeader);
+  }
+  write_imu_sensor_yaml(mav0_ / "imu0" / "sensor.yaml", rig.imu);
+  imu_fd_ = open_csv(mav0_ / "imu0" / "data.csv", kImuHeader);
+}
+
+EurocWriter::~EurocWriter() {
+  try {
+    close();
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "wallar: closing recording: %s\n", e.what());
+  }
+}
+
+void EurocWriter::write_imu(const ImuSample& s) {
+  if (closed_) throw_input_error(mav0_.string(), 0, "recording already closed");
+  std::string row = std::to_string(s.t_ns);
+  for (int i = 0; i < 3; ++i) row += "," + format_euroc_double(s.gyro_rad_s[i]);
+  for (int i = 0; i < 3; ++i) row += "," + format_euroc_double(s.accel_m_s2[i]);
+  row += '\n';
+  write_all(imu_fd_, row, mav0_ / "imu0" / "data.csv");
+  ++imu_rows_;
+}
+
+void EurocWriter::write_camera(int cam, const CameraFrame& frame) {
+  if (closed_) throw_input_error(mav0_.string(), 0, "recording already closed");
+  const auto idx = static_cast<std::size_t>(cam);
+  const fs::path dir = mav0_ / ("cam" + std::to_string(cam));
+  const std::string name = std::to_string(frame.t_ns) + ".png";
+  const fs::path tmp = dir / "data" / (name + ".part");
+  save_png_gray(tmp, frame.image);
+  std::error_code ec;
+  fs::rename(tmp, dir / "data" / name, ec);
+  if (ec) throw_input_error(tmp.string(), 0, "cannot rename: " + ec.message());
+  write_all(cam_fd_[idx], std::to_string(frame.t_ns) + "," + name + "\n", dir / "data.csv");
+  ++cam_rows_[idx];
+}
+
+void EurocWriter::close() {
+  if (closed_) return;
+  closed_ = true;
+  for (int* fd : {&imu_fd_, &cam_fd_[0], &cam_fd_[1]}) {
+    if (*fd < 0) continue;
+    ::fsync(*fd);
+    ::close(*fd);
+    *fd = -1;
+  }
+  // Make the new directory entries (renamed PNGs) durable too.
+  for (const char* sub : {"cam0/data", "cam1/data", "imu0"}) {
+    const int dfd = ::open((mav0_ / sub).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dfd >= 0) {
+      ::fsync(dfd);
+      ::close(dfd);
+    }
+  }
+}
+
+}  // namespace wallar::recording

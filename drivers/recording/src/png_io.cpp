@@ -1,0 +1,64 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file png_io.cpp
+/// @brief 8-bit gray PNG through libpng's simplified API (available on every target, unlike
+/// OpenCV's imgcodecs on the arm64 multiarch build).
+#include <png.h>
+
+#include <cstring>
+
+#include "wallar/core/error.hpp"
+#include "wallar/drivers/recording/euroc.hpp"
+
+namespace wallar::recording {
+
+Image load_png_gray(const std::filesystem::path& path, int expected_width, int expected_height) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw_input_error(path.string(), 0, "no such image file");
+  png_image png;
+  std::memset(&png, 0, sizeof png);
+  png.version = PNG_IMAGE_VERSION;
+  if (png_image_begin_read_from_file(&png, path.c_str()) == 0) {
+    throw_input_error(path.string(), 0, std::string("unreadable PNG: ") + png.message);
+  }
+  const int width = static_cast<int>(png.width);
+  const int height = static_cast<int>(png.height);
+  if ((expected_width > 0 && width != expected_width) ||
+      (expected_height > 0 && height != expected_height)) {
+    png_image_free(&png);
+    throw_input_error(path.string(), 0,
+                      "image is " + std::to_string(width) + "x" + std::to_string(height) +
+                          ", expected " + std::to_string(expected_width) + "x" +
+                          std::to_string(expected_height));
+  }
+  if (width <= 0 || height <= 0 || width > 16384 || height > 16384) {
+    png_image_free(&png);
+    throw_input_error(path.string(), 0, "implausible PNG size");
+  }
+  png.format = PNG_FORMAT_GRAY;  // colour input is converted to gray by libpng
+  Image image = Image::allocate(width, height, PixelFormat::kGray8);
+  if (png_image_finish_read(&png, nullptr, image.mutable_data(), image.stride_bytes(), nullptr) ==
+      0) {
+    const std::string msg = png.message;
+    png_image_free(&png);
+    throw_input_error(path.string(), 0, "corrupt PNG: " + msg);
+  }
+  return image;
+}
+
+void save_png_gray(const std::filesystem::path& path, const Image& image) {
+  if (image.empty() || image.format() != PixelFormat::kGray8) {
+    throw_input_error(path.string(), 0, "only non-empty 8-bit gray images can be saved as PNG");
+  }
+  png_image png;
+  std::memset(&png, 0, sizeof png);
+  png.version = PNG_IMAGE_VERSION;
+  png.width = static_cast<png_uint_32>(image.width());
+  png.height = static_cast<png_uint_32>(image.height());
+  png.format = PNG_FORMAT_GRAY;
+  if (png_image_write_to_file(&png, path.c_str(), 0, image.data(), image.stride_bytes(),
+                              nullptr) == 0) {
+    throw_input_error(path.string(), 0, std::string("cannot write PNG: ") + png.message);
+  }
+}
+
+}  // namespace wallar::recording

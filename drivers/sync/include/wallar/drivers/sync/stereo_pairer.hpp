@@ -1,0 +1,59 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file stereo_pairer.hpp
+/// @brief Pairs left and right camera frames by timestamp within a tolerance.
+///
+/// Frames of each camera arrive in time order (live capture or replay). A left and a right
+/// frame whose times differ by at most the tolerance form a pair; a frame that can no longer
+/// find a partner (the other camera has moved past it) is counted as unpaired and handed to the
+/// caller, never dropped silently. Holds at most one pending frame per camera: no allocation.
+///
+/// Threading: single-threaded; the owner serialises push() calls.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+
+#include "wallar/core/stereo_frame.hpp"
+
+namespace wallar::sync {
+
+struct PairingStats {
+  std::uint64_t pairs = 0;
+  std::array<std::uint64_t, 2> unpaired{0, 0};  //!< frames of cam0/cam1 that found no partner
+  DurationNs max_abs_skew_ns = 0;               //!< largest |t_right - t_left| of a pair
+  double sum_abs_skew_ns = 0.0;
+
+  [[nodiscard]] double mean_abs_skew_ns() const {
+    return pairs ? sum_abs_skew_ns / static_cast<double>(pairs) : 0.0;
+  }
+};
+
+class StereoPairer {
+ public:
+  /// tolerance_ns: largest |t_left - t_right| accepted; half the frame period is a good choice.
+  explicit StereoPairer(DurationNs tolerance_ns) : tolerance_ns_(tolerance_ns) {}
+
+  struct Result {
+    std::optional<StereoFrame> pair;
+    /// Frames given up on in this call, indexed by camera.
+    std::array<std::optional<CameraFrame>, 2> unpaired;
+  };
+
+  /// Offers a frame of camera `cam` (0 = left, 1 = right). At most one pair, and at most one
+  /// given-up frame per camera, come out of one call.
+  Result push(int cam, CameraFrame frame);
+  /// Gives up on whatever is still pending (end of stream); returns them as unpaired.
+  std::array<std::optional<CameraFrame>, 2> flush();
+
+  [[nodiscard]] const PairingStats& stats() const { return stats_; }
+  [[nodiscard]] DurationNs tolerance_ns() const { return tolerance_ns_; }
+
+ private:
+  DurationNs tolerance_ns_;
+  std::array<std::optional<CameraFrame>, 2> pending_;
+  std::uint64_t next_sequence_ = 0;
+  PairingStats stats_;
+};
+
+}  // namespace wallar::sync

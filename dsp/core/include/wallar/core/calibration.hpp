@@ -1,0 +1,46 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file calibration.hpp
+/// @brief Sensor calibration as plain data: pinhole + radial-tangential cameras, IMU noise,
+/// and the extrinsics T_body_sensor (body = IMU frame, EuRoC's convention).
+///
+/// Threading: value types.
+#pragma once
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "wallar/core/pose.hpp"
+
+namespace wallar {
+
+struct CameraCalibration {
+  std::string name = "cam0";
+  int width_px = 0;
+  int height_px = 0;
+  double rate_hz = 0.0;
+  double fx = 0.0, fy = 0.0, cx = 0.0, cy = 0.0;  //!< [px]
+  std::string distortion_model = "radial-tangential";
+  std::vector<double> distortion;  //!< k1, k2, p1, p2 for radial-tangential
+  SE3d T_body_cam = SE3d::Identity();
+};
+
+struct ImuCalibration {
+  double rate_hz = 0.0;
+  double gyro_noise_density = 0.0;   //!< [rad/s/sqrt(Hz)]
+  double gyro_random_walk = 0.0;     //!< [rad/s^2/sqrt(Hz)]
+  double accel_noise_density = 0.0;  //!< [m/s^2/sqrt(Hz)]
+  double accel_random_walk = 0.0;    //!< [m/s^3/sqrt(Hz)]
+  SE3d T_body_imu = SE3d::Identity();
+};
+
+/// Left and right camera, and the IMU.
+struct RigCalibration {
+  std::array<CameraCalibration, 2> cams;
+  ImuCalibration imu;
+
+  /// T_left_right: right camera coordinates into the left camera.
+  [[nodiscard]] SE3d T_cam0_cam1() const { return cams[0].T_body_cam.inverse() * cams[1].T_body_cam; }
+};
+
+}  // namespace wallar

@@ -1,0 +1,32 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file error.hpp
+/// @brief The error every reader throws for bad input: one line naming what and where.
+///
+/// Readers throw InputError with a message "FILE:LINE: what is wrong" (or "FILE: ..." when no
+/// line applies). The CLI prints it on one stderr line and exits with kExitBadInput; nothing
+/// else in the project may crash on bad input.
+///
+/// Threading: value type.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
+namespace wallar {
+
+class InputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// "path:line: message" (line 0 means the whole file: "path: message").
+[[noreturn]] inline void throw_input_error(std::string_view path, int line, std::string_view msg) {
+  std::string text(path);
+  if (line > 0) text += ":" + std::to_string(line);
+  text += ": ";
+  text += msg;
+  throw InputError(text);
+}
+
+}  // namespace wallar

@@ -1,0 +1,82 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file board.hpp
+/// @brief One YAML file per board: where the sensors are and how the appliance runs on it.
+///
+/// The loader checks the schema: an unknown key, a missing required key or a value of the
+/// wrong type is an InputError that names the file, the line and the key path. Relative paths
+/// in the file are resolved against the board file's folder.
+///
+/// Threading: a loaded BoardConfig is immutable; share it read-only.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+
+namespace wallar::firmware {
+
+/// A GPIO line through the character device (libgpiod): chip name or path, and offset.
+struct GpioLine {
+  std::string chip;  //!< "gpiochip0" or "/dev/gpiochip4"
+  int line = -1;     //!< offset within the chip
+  bool active_low = false;
+};
+
+struct CameraConfig {
+  std::string device;         //!< "/dev/video0"
+  std::string usb_id;         //!< "VID:PID" for hot-plug discovery and USB reset, may be empty
+  int width_px = 640;
+  int height_px = 480;
+  double fps = 30.0;
+  std::string pixel_format = "GREY";  //!< GREY, YUYV or MJPG
+};
+
+struct ImuConfig {
+  std::string driver = "none";  //!< none, icm20948 (I2C) or bno055 (UART)
+  std::string bus;              //!< "/dev/i2c-1" or a serial device
+  std::uint8_t address = 0;     //!< 7-bit I2C address (I2C drivers)
+  int baud = 115200;            //!< serial drivers
+  double rate_hz = 200.0;
+  std::optional<GpioLine> data_ready;
+};
+
+struct DisplayConfig {
+  std::string backend = "headless";  //!< headless (EGL pbuffer) or kms (DRM/KMS + GBM)
+  std::string card = "/dev/dri/card0";
+  std::string connector;  //!< "HDMI-A-1", empty = first connected
+  int width_px = 1280;
+  int height_px = 720;
+};
+
+struct ReplayConfig {
+  std::filesystem::path recording;  //!< EuRoC recording (absolute after loading)
+  double rate = 1.0;                //!< 0 = as fast as possible
+  double start_offset_s = 0.0;
+  std::uint32_t skip = 0;
+};
+
+struct BoardConfig {
+  std::filesystem::path file;
+  std::string name;
+  std::string description;
+  enum class Source : std::uint8_t { kReplay, kLive } source = Source::kReplay;
+  ReplayConfig replay;                 //!< source == kReplay
+  CameraConfig cameras[2];             //!< source == kLive: left, right
+  double sync_tolerance_ms = -1.0;     //!< < 0: half the frame period
+  std::optional<GpioLine> camera_trigger;
+  ImuConfig imu;
+  DisplayConfig display;
+  std::optional<std::filesystem::path> calibration;  //!< EuRoC-style folder or Kalibr YAML
+  std::optional<GpioLine> reset_button;
+  std::optional<GpioLine> exit_button;
+};
+
+/// Reads and checks a board file; throws InputError "FILE:LINE: ..." naming the bad key.
+BoardConfig load_board(const std::filesystem::path& path);
+/// The same from text (tests, fuzzing); relative paths resolve against `base_dir`.
+BoardConfig parse_board(std::string_view text, const std::string& name,
+                        const std::filesystem::path& base_dir);
+
+}  // namespace wallar::firmware

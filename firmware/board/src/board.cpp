@@ -1,0 +1,153 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file board.cpp
+/// @brief Board file loading with a schema check.
+#include "wallar/firmware/board.hpp"
+
+#include "wallar/core/error.hpp"
+#include "wallar/drivers/config/yaml.hpp"
+#include "wallar/drivers/recording/csv.hpp"
+
+namespace wallar::firmware {
+namespace fs = std::filesystem;
+using config::YamlNode;
+
+namespace {
+
+std::string one_of(const YamlNode& node, std::initializer_list<std::string_view> allowed) {
+  const std::string value = node.as_string();
+  std::string list;
+  for (std::string_view a : allowed) {
+    if (a == value) return value;
+    list += (list.empty() ? "" : ", ") + std::string(a);
+  }
+  node.fail("must be one of " + list + ", got '" + value + "'");
+}
+
+int positive_int(const YamlNode& node, std::int64_t max) {
+  const std::int64_t v = node.as_int();
+  if (v <= 0 || v > max) node.fail("must be in 1.." + std::to_string(max));
+  return static_cast<int>(v);
+}
+
+double positive_double(const YamlNode& node) {
+  const double v = node.as_double();
+  if (!(v > 0.0)) node.fail("must be positive");
+  return v;
+}
+
+fs::path resolve(const fs::path& base, const YamlNode& node) {
+  const fs::path p = node.as_string();
+  return p.is_absolute() ? p : (base / p).lexically_normal();
+}
+
+GpioLine parse_gpio(const YamlNode& node) {
+  node.check_keys({"chip", "line", "active_low"});
+  GpioLine g;
+  g.chip = node.at("chip").as_string();
+  const std::int64_t line = node.at("line").as_int();
+  if (line < 0 || line > 1023) node.at("line").fail("must be a line offset in 0..1023");
+  g.line = static_cast<int>(line);
+  g.active_low = node.get_bool("active_low", false);
+  return g;
+}
+
+CameraConfig parse_camera(const YamlNode& node) {
+  node.check_keys({"device", "usb_id", "width", "height", "fps", "format"});
+  CameraConfig c;
+  c.device = node.at("device").as_string();
+  if (const YamlNode* usb = node.find("usb_id")) {
+    c.usb_id = usb->as_string();
+    const bool ok = c.usb_id.size() == 9 && c.usb_id[4] == ':' &&
+                    c.usb_id.find_first_not_of("0123456789abcdefABCDEF:") == std::string::npos;
+    if (!ok) usb->fail("must be VID:PID in hex, e.g. 32e4:9750, got '" + c.usb_id + "'");
+  }
+  c.width_px = positive_int(node.at("width"), 16384);
+  c.height_px = positive_int(node.at("height"), 16384);
+  c.fps = positive_double(node.at("fps"));
+  if (const YamlNode* f = node.find("format")) c.pixel_format = one_of(*f, {"GREY", "YUYV", "MJPG"});
+  return c;
+}
+
+}  // namespace
+
+BoardConfig parse_board(std::string_view text, const std::string& name, const fs::path& base_dir) {
+  const config::YamlDocument doc = config::YamlDocument::parse(text, name);
+  const YamlNode& root = doc.root();
+  if (!root.is_map()) root.fail("must be a map (a board file)");
+  root.check_keys({"board", "source", "replay", "cameras", "imu", "display", "calibration",
+                   "input"});
+  BoardConfig b;
+  b.file = name;
+
+  const YamlNode& board = root.at("board");
+  board.check_keys({"name", "description"});
+  b.name = board.at("name").as_string();
+  b.description = board.get_string("description", "");
+
+  b.source = one_of(root.at("source"), {"replay", "live"}) == "replay" ? BoardConfig::Source::kReplay
+                                                                       : BoardConfig::Source::kLive;
+  if (b.source == BoardConfig::Source::kReplay) {
+    const YamlNode& r = root.at("replay");
+    r.check_keys({"recording", "rate", "start_offset_s", "skip"});
+    b.replay.recording = resolve(base_dir, r.at("recording"));
+    b.replay.rate = r.get_double("rate", 1.0);
+    if (b.replay.rate < 0.0) r.at("rate").fail("must be >= 0 (0 = as fast as possible)");
+    b.replay.start_offset_s = r.get_double("start_offset_s", 0.0);
+    if (b.replay.start_offset_s < 0.0) r.at("start_offset_s").fail("must be >= 0");
+    const std::int64_t skip = r.get_int("skip", 0);
+    if (skip < 0 || skip > 1000) r.at("skip").fail("must be in 0..1000");
+    b.replay.skip = static_cast<std::uint32_t>(skip);
+  } else {
+    const YamlNode& cams = root.at("cameras");
+    cams.check_keys({"left", "right", "sync_tolerance_ms", "trigger"});
+    b.cameras[0] = parse_camera(cams.at("left"));
+    b.cameras[1] = parse_camera(cams.at("right"));
+    b.sync_tolerance_ms = cams.get_double("sync_tolerance_ms", -1.0);
+    if (const YamlNode* t = cams.find("trigger")) b.camera_trigger = parse_gpio(*t);
+  }
+  if (b.source == BoardConfig::Source::kReplay && root.has("cameras")) {
+    root.at("cameras").fail("is for live boards (source: live); a replay board takes its cameras "
+                            "from the recording");
+  }
+
+  if (const YamlNode* imu = root.find("imu")) {
+    imu->check_keys({"driver", "bus", "address", "baud", "rate_hz", "data_ready"});
+    b.imu.driver = one_of(imu->at("driver"), {"none", "icm20948", "bno055"});
+    if (b.imu.driver != "none") b.imu.bus = imu->at("bus").as_string();
+    if (b.imu.driver == "icm20948") {
+      const std::int64_t addr = imu->at("address").as_int();
+      if (addr < 0x08 || addr > 0x77) imu->at("address").fail("must be a 7-bit address 0x08..0x77");
+      b.imu.address = static_cast<std::uint8_t>(addr);
+    }
+    if (const YamlNode* baud = imu->find("baud")) b.imu.baud = positive_int(*baud, 4'000'000);
+    if (const YamlNode* rate = imu->find("rate_hz")) b.imu.rate_hz = positive_double(*rate);
+    if (const YamlNode* dr = imu->find("data_ready")) b.imu.data_ready = parse_gpio(*dr);
+  }
+
+  if (const YamlNode* d = root.find("display")) {
+    d->check_keys({"backend", "card", "connector", "width", "height"});
+    b.display.backend = one_of(d->at("backend"), {"headless", "kms"});
+    b.display.card = d->get_string("card", b.display.card);
+    b.display.connector = d->get_string("connector", "");
+    if (const YamlNode* w = d->find("width")) b.display.width_px = positive_int(*w, 16384);
+    if (const YamlNode* h = d->find("height")) b.display.height_px = positive_int(*h, 16384);
+  }
+
+  if (const YamlNode* c = root.find("calibration")) b.calibration = resolve(base_dir, *c);
+
+  if (const YamlNode* in = root.find("input")) {
+    in->check_keys({"reset_button", "exit_button"});
+    if (const YamlNode* r = in->find("reset_button")) b.reset_button = parse_gpio(*r);
+    if (const YamlNode* e = in->find("exit_button")) b.exit_button = parse_gpio(*e);
+  }
+  return b;
+}
+
+BoardConfig load_board(const fs::path& path) {
+  BoardConfig b = parse_board(recording::read_text_file(path), path.string(),
+                              path.parent_path().empty() ? fs::path(".") : path.parent_path());
+  b.file = path;
+  return b;
+}
+
+}  // namespace wallar::firmware

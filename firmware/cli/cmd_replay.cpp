@@ -1,0 +1,70 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file cmd_replay.cpp
+/// @brief `wallar replay RECORDING`: play a recording, report what it holds and how it played.
+#include <cstdio>
+#include <iostream>
+
+#include "commands.hpp"
+#include "wallar/drivers/recording/stream_stats.hpp"
+#include "wallar/firmware/report.hpp"
+#include "wallar/firmware/source_runner.hpp"
+
+namespace wallar::cli {
+namespace {
+
+struct ReplayArgs {
+  std::string recording;
+  bool stats = false;
+  bool json = false;
+  bool no_images = false;
+  ReplayFlags flags;
+};
+
+// Counts what arrives, as any consumer would see it.
+class CountingSink final : public source::SensorSink {
+ public:
+  void on_imu(const ImuSample& /*sample*/) override {}
+  void on_stereo(const StereoFrame& /*frame*/) override {}
+  void on_unpaired(int cam, const CameraFrame& frame) override {
+    std::fprintf(stderr, "wallar: warning: cam%d frame %lld has no partner within tolerance\n",
+                 cam, static_cast<long long>(frame.t_ns));
+  }
+};
+
+int run_replay_command(const ReplayArgs& args) {
+  const recording::EurocRecording rec = recording::read_euroc(args.recording);
+  source::ReplayOptions options = args.flags.apply({});
+  options.with_images = !args.no_images;
+  CountingSink sink;
+  const source::ReplayStats played = firmware::run_replay(rec, options, sink, stop_requested());
+  const DurationNs tolerance = source::ReplaySource(rec, options).pair_tolerance_ns();
+
+  if (args.json) {
+    nlohmann::json out = {{"recording", args.recording},
+                          {"replay", firmware::to_json(played, tolerance)}};
+    if (args.stats) out["streams"] = firmware::to_json(recording::recording_stats(rec));
+    std::cout << out.dump(2) << "\n";
+  } else {
+    std::cout << "recording " << args.recording << "\n";
+    if (args.stats) std::cout << firmware::to_text(recording::recording_stats(rec));
+    std::cout << firmware::to_text(played, tolerance);
+  }
+  return played.stopped ? kExitInterrupted : kExitOk;
+}
+
+}  // namespace
+
+void add_replay_command(CLI::App& app, std::function<int()>& run) {
+  auto args = std::make_shared<ReplayArgs>();
+  CLI::App* cmd = app.add_subcommand("replay", "Play a recording (EuRoC layout) as if live");
+  cmd->add_option("recording", args->recording, "Recording folder (holding mav0/)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  cmd->add_flag("--stats", args->stats, "Print counts, rates, gaps and pairing of every stream");
+  cmd->add_flag("--json", args->json, "Print the report as JSON on stdout");
+  cmd->add_flag("--no-images", args->no_images, "Do not decode images (timing only)");
+  add_replay_flags(*cmd, args->flags);
+  cmd->callback([args, &run] { run = [args] { return run_replay_command(*args); }; });
+}
+
+}  // namespace wallar::cli

@@ -1,0 +1,170 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file cmd_run.cpp
+/// @brief `wallar run --board FILE`: the appliance's main job on a board.
+///
+/// Today's pipeline: the board's source (replay on the sim board) feeds a collector that
+/// estimates gravity and gyro bias from the IMU while at rest, checks the estimate against the
+/// recording's ground truth when it has one, keeps the first stereo pair, and writes a summary
+/// under --out. Later modules (tracking, mapping, walls, rendering) hang off the same sink.
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+
+#include "commands.hpp"
+#include "wallar/core/error.hpp"
+#include "wallar/dsp/imu/static_init.hpp"
+#include "wallar/firmware/board.hpp"
+#include "wallar/firmware/report.hpp"
+#include "wallar/firmware/source_runner.hpp"
+
+namespace wallar::cli {
+namespace {
+namespace fs = std::filesystem;
+
+struct RunArgs {
+  std::string board;
+  std::string out = "out";
+  bool json = false;
+  bool check = false;
+  ReplayFlags flags;
+};
+
+class CollectorSink final : public source::SensorSink {
+ public:
+  explicit CollectorSink(std::size_t imu_capacity) { imu.reserve(imu_capacity); }
+  void on_imu(const ImuSample& s) override {
+    if (imu.size() < imu.capacity()) imu.push_back(s);  // never grow on the sensor thread
+  }
+  void on_stereo(const StereoFrame& f) override {
+    if (pairs == 0) first = f;  // a reference, not a copy of the pixels
+    last_t_ns = f.t_ns;
+    ++pairs;
+  }
+  std::vector<ImuSample> imu;
+  StereoFrame first;
+  TimeNs last_t_ns = 0;
+  std::uint64_t pairs = 0;
+};
+
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+// Side by side, as the headset's display shows the two eyes.
+void save_side_by_side(const fs::path& path, const StereoFrame& f) {
+  const Image& l = f.left.image;
+  const Image& r = f.right.image;
+  if (l.empty() || r.empty() || l.height() != r.height()) return;
+  Image sbs = Image::allocate(l.width() + r.width(), l.height(), PixelFormat::kGray8);
+  for (int y = 0; y < l.height(); ++y) {
+    std::copy_n(l.row(y), l.width(), sbs.mutable_data() + std::ptrdiff_t{y} * sbs.stride_bytes());
+    std::copy_n(r.row(y), r.width(),
+                sbs.mutable_data() + std::ptrdiff_t{y} * sbs.stride_bytes() + l.width());
+  }
+  recording::save_png_gray(path, sbs);
+}
+
+int run_run_command(const RunArgs& args) {
+  const firmware::BoardConfig board = firmware::load_board(args.board);
+  if (args.check) {
+    std::cout << "board " << board.name << " (" << args.board << "): ok\n";
+    return kExitOk;
+  }
+  if (board.source != firmware::BoardConfig::Source::kReplay) {
+    std::fprintf(stderr,
+                 "wallar: error: %s: board '%s' uses live sensors; the camera and IMU drivers are "
+                 "not in this build yet (use a replay board such as board/sim.yaml)\n",
+                 args.board.c_str(), board.name.c_str());
+    return kExitFailure;
+  }
+  const recording::EurocRecording rec = recording::read_euroc(board.replay.recording);
+  source::ReplayOptions options;
+  options.rate = board.replay.rate;
+  options.start_offset_ns = s_to_ns(board.replay.start_offset_s);
+  options.skip = board.replay.skip;
+  options = args.flags.apply(options);
+
+  std::error_code ec;
+  fs::create_directories(args.out, ec);
+  if (ec) throw_input_error(args.out, 0, "cannot create output folder: " + ec.message());
+
+  std::cerr << "wallar: board " << board.name << ": replaying " << board.replay.recording.string()
+            << " at " << (options.rate > 0 ? std::to_string(options.rate) + "x" : "full speed")
+            << "\n";
+  CollectorSink sink(rec.imu.size());
+  const source::ReplayStats stats = firmware::run_replay(rec, options, sink, stop_requested());
+  const DurationNs tolerance = source::ReplaySource(rec, options).pair_tolerance_ns();
+
+  nlohmann::json summary = {{"board", board.name},
+                            {"recording", board.replay.recording.string()},
+                            {"replay", firmware::to_json(stats, tolerance)}};
+  std::string text = firmware::to_text(stats, tolerance);
+
+  // Gravity and gyro bias over the span of the camera frames.
+  const auto est = dsp::estimate_static_imu(sink.imu, sink.first.t_ns, sink.last_t_ns);
+  if (est && sink.pairs > 0) {
+    const bool still = dsp::is_still(*est);
+    nlohmann::json imu = {
+        {"samples", est->samples},
+        {"still", still},
+        {"mean_accel_m_s2", {est->mean_accel_m_s2.x(), est->mean_accel_m_s2.y(), est->mean_accel_m_s2.z()}},
+        {"gravity_norm_m_s2", est->mean_accel_m_s2.norm()},
+        {"gyro_bias_rad_s", {est->gyro_bias_rad_s.x(), est->gyro_bias_rad_s.y(), est->gyro_bias_rad_s.z()}},
+        {"accel_std_m_s2", est->accel_std_m_s2},
+        {"gyro_std_rad_s", est->gyro_std_rad_s}};
+    char buf[400];
+    std::snprintf(buf, sizeof buf,
+                  "IMU %s over %zu samples: up (body) = (%.4f, %.4f, %.4f) m/s^2, |g| = %.4f; "
+                  "gyro bias = (%.5f, %.5f, %.5f) rad/s\n",
+                  still ? "at rest" : "MOVING", est->samples, est->mean_accel_m_s2.x(),
+                  est->mean_accel_m_s2.y(), est->mean_accel_m_s2.z(), est->mean_accel_m_s2.norm(),
+                  est->gyro_bias_rad_s.x(), est->gyro_bias_rad_s.y(), est->gyro_bias_rad_s.z());
+    text += buf;
+    if (!rec.ground_truth.empty()) {
+      // Ground truth nearest the first frame: "up" of the world seen in the body frame.
+      const auto& gt = *std::min_element(
+          rec.ground_truth.begin(), rec.ground_truth.end(), [&](const auto& a, const auto& b) {
+            return std::llabs(a.t_ns - sink.first.t_ns) < std::llabs(b.t_ns - sink.first.t_ns);
+          });
+      const Eigen::Vector3d up_body = gt.T_world_body.linear().transpose() * Eigen::Vector3d::UnitZ();
+      const double gravity_err = angle_deg(est->mean_accel_m_s2, up_body);
+      const double bias_err = (est->gyro_bias_rad_s - gt.gyro_bias_rad_s).norm();
+      imu["gravity_error_vs_ground_truth_deg"] = gravity_err;
+      imu["gyro_bias_error_vs_ground_truth_rad_s"] = bias_err;
+      std::snprintf(buf, sizeof buf,
+                    "ground truth: gravity direction off by %.3f deg, gyro bias off by %.5f rad/s\n",
+                    gravity_err, bias_err);
+      text += buf;
+    }
+    summary["imu"] = imu;
+  }
+  if (!sink.first.left.image.empty()) {
+    save_side_by_side(fs::path(args.out) / "first_stereo_pair.png", sink.first);
+    summary["outputs"] = {"run_summary.json", "first_stereo_pair.png"};
+  }
+  std::ofstream(fs::path(args.out) / "run_summary.json") << summary.dump(2) << "\n";
+  if (args.json) {
+    std::cout << summary.dump(2) << "\n";
+  } else {
+    std::cout << text << "outputs in " << args.out << "/\n";
+  }
+  return stats.stopped ? kExitInterrupted : kExitOk;
+}
+
+}  // namespace
+
+void add_run_command(CLI::App& app, std::function<int()>& run) {
+  auto args = std::make_shared<RunArgs>();
+  CLI::App* cmd = app.add_subcommand("run", "Run the appliance on a board (live or replay)");
+  cmd->add_option("--board", args->board, "Board file, e.g. board/sim.yaml")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--out", args->out, "Folder for outputs")->capture_default_str();
+  cmd->add_flag("--json", args->json, "Print the summary as JSON on stdout");
+  cmd->add_flag("--check", args->check, "Only check the board file and exit");
+  add_replay_flags(*cmd, args->flags);
+  cmd->callback([args, &run] { run = [args] { return run_run_command(*args); }; });
+}
+
+}  // namespace wallar::cli

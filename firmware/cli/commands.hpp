@@ -1,0 +1,50 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file commands.hpp
+/// @brief The wallar subcommands: each registers its options and returns an exit code.
+///
+/// Threading: called from main() only.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <functional>
+
+namespace wallar::cli {
+
+/// Exit codes, documented in README.md.
+enum ExitCode : int {
+  kExitOk = 0,
+  kExitFailure = 1,   //!< a runtime failure (device, I/O)
+  kExitUsage = 2,     //!< bad command line
+  kExitBadInput = 3,  //!< a bad input file (recording, board, calibration)
+  kExitInterrupted = 130,
+};
+
+/// Set by SIGINT/SIGTERM; long-running commands poll it and stop cleanly.
+std::atomic<bool>& stop_requested();
+
+/// Each adds a subcommand to `app` and sets `run` to its action when it is chosen.
+void add_run_command(CLI::App& app, std::function<int()>& run);
+void add_replay_command(CLI::App& app, std::function<int()>& run);
+void add_record_command(CLI::App& app, std::function<int()>& run);
+
+}  // namespace wallar::cli
+
+#include "wallar/drivers/source/replay_source.hpp"
+
+namespace wallar::cli {
+
+/// Playback flags shared by the commands that play a recording.
+struct ReplayFlags {
+  double rate = -1.0;  //!< < 0: not given on the command line
+  bool fast = false;
+  double start_s = -1.0;
+  int skip = -1;
+  double tolerance_ms = -1.0;
+
+  /// The options, starting from `base` (e.g. the board's) and overridden by the flags given.
+  [[nodiscard]] source::ReplayOptions apply(source::ReplayOptions base) const;
+};
+void add_replay_flags(CLI::App& cmd, ReplayFlags& flags);
+
+}  // namespace wallar::cli
