@@ -17,6 +17,7 @@ struct ReplayArgs {
   bool stats = false;
   bool json = false;
   bool no_images = false;
+  bool strict = false;
   ReplayFlags flags;
 };
 
@@ -35,6 +36,9 @@ int run_replay_command(const ReplayArgs& args) {
   const recording::EurocRecording rec = recording::read_euroc(args.recording);
   source::ReplayOptions options = args.flags.apply({});
   options.with_images = !args.no_images;
+  if (args.strict) {
+    recording::check_stereo_pairs(rec, source::ReplaySource(rec, options).pair_tolerance_ns());
+  }
   CountingSink sink;
   const source::ReplayStats played = firmware::run_replay(rec, options, sink, stop_requested());
   const DurationNs tolerance = source::ReplaySource(rec, options).pair_tolerance_ns();
@@ -63,6 +67,8 @@ void add_replay_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_flag("--stats", args->stats, "Print counts, rates, gaps and pairing of every stream");
   cmd->add_flag("--json", args->json, "Print the report as JSON on stdout");
   cmd->add_flag("--no-images", args->no_images, "Do not decode images (timing only)");
+  cmd->add_flag("--strict", args->strict,
+                "Fail on the first frame without a stereo partner instead of counting it");
   add_replay_flags(*cmd, args->flags);
   cmd->callback([args, &run] { run = [args] { return run_replay_command(*args); }; });
 }

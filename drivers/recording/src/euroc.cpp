@@ -8,6 +8,7 @@
 
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <sstream>
 
@@ -229,6 +230,25 @@ EurocRecording read_euroc(const fs::path& root, const ReadOptions& options) {
     rec.ground_truth = parse_ground_truth_csv(read_text_file(gt_csv), gt_csv.string());
   }
   return rec;
+}
+
+void check_stereo_pairs(const EurocRecording& rec, DurationNs tolerance_ns) {
+  static constexpr const char* kSide[2] = {"left", "right"};
+  for (std::size_t c = 0; c < 2; ++c) {
+    const auto& mine = rec.cams[c].frames;
+    const auto& other = rec.cams[1 - c].frames;
+    std::size_t j = 0;
+    for (const FrameEntry& f : mine) {
+      // Both lists increase: advance to the first partner candidate not too early.
+      while (j < other.size() && other[j].t_ns < f.t_ns - tolerance_ns) ++j;
+      if (j < other.size() && std::llabs(other[j].t_ns - f.t_ns) <= tolerance_ns) continue;
+      char msg[160];
+      std::snprintf(msg, sizeof msg, "%s frame %lld has no %s frame within %.3f ms", kSide[c],
+                    static_cast<long long>(f.t_ns), kSide[1 - c],
+                    static_cast<double>(tolerance_ns) * 1e-6);
+      throw_input_error((rec.cams[c].dir / "data.csv").string(), f.line, msg);
+    }
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

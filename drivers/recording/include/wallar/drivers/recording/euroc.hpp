@@ -82,6 +82,11 @@ std::vector<ImuSample> parse_imu_csv(std::string_view text, const std::string& n
 std::vector<GroundTruthState> parse_ground_truth_csv(std::string_view text,
                                                      const std::string& name);
 
+/// Checks that every frame of each camera has a partner in the other within `tolerance_ns`;
+/// throws InputError "CAMDIR/data.csv:LINE: left frame T has no right frame within X ms" for the
+/// first that has none (a strict check; replay itself counts such frames and goes on).
+void check_stereo_pairs(const EurocRecording& rec, DurationNs tolerance_ns);
+
 /// Reads sensor.yaml files (EuRoC's own, which is OpenCV-flavoured YAML).
 CameraCalibration read_camera_sensor_yaml(const std::filesystem::path& path);
 ImuCalibration read_imu_sensor_yaml(const std::filesystem::path& path);

@@ -1,0 +1,118 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
+# CLI tests of the wallar binary: conventions (help, exit codes, errors on one stderr line,
+# JSON on request), replay --stats of the bundled recording, and the record -> replay round trip.
+#
+# usage: test_cli.sh WALLAR_BINARY SOURCE_DIR CASE    (WALLAR_EMULATOR may hold e.g. qemu-aarch64)
+set -uo pipefail
+bin=$1
+src=$2
+case_name=$3
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+rec="$src/tests/data/euroc_v1_01_still"
+fail() { echo "FAIL [$case_name]: $*" >&2; exit 1; }
+wallar() { ${WALLAR_EMULATOR:-} "$bin" "$@"; }
+# Runs wallar, keeping stdout, stderr and the exit code.
+run() { wallar "$@" >"$tmp/out" 2>"$tmp/err"; echo $? >"$tmp/rc"; }
+rc() { cat "$tmp/rc"; }
+expect_rc() { [ "$(rc)" = "$1" ] || fail "exit code $(rc), expected $1; stderr: $(cat "$tmp/err")"; }
+expect_err() { grep -qF -- "$1" "$tmp/err" || fail "stderr lacks '$1': $(cat "$tmp/err")"; }
+expect_out() { grep -qF -- "$1" "$tmp/out" || fail "stdout lacks '$1': $(cat "$tmp/out")"; }
+one_err_line() { [ "$(grep -c . "$tmp/err")" = 1 ] || fail "expected one stderr line: $(cat "$tmp/err")"; }
+json() { python3 -c "import json,sys; d=json.load(open('$tmp/out')); print($1)"; }
+
+case "$case_name" in
+help)
+  run --help; expect_rc 0; expect_out "replay"; expect_out "record"; expect_out "run"
+  run replay --help; expect_rc 0; expect_out "--stats"
+  run --version; expect_rc 0; expect_out "wallar"
+  ;;
+usage_errors)
+  run; expect_rc 2; expect_err "wallar:"
+  run frobnicate; expect_rc 2
+  run replay; expect_rc 2; expect_err "recording"
+  run replay "$rec" --rate -3; expect_rc 2
+  ;;
+replay_stats)
+  run replay "$rec" --stats --fast; expect_rc 0
+  expect_out "cam0      40 samples"; expect_out "imu0     491 samples"
+  expect_out "40 pairs, unpaired left 0, right 0"; expect_out "0 gaps"
+  run replay "$rec" --stats --fast --json; expect_rc 0
+  [ "$(json "d['streams']['imu0']['count']")" = 491 ] || fail "imu count"
+  [ "$(json "round(d['streams']['cam1']['mean_rate_hz'])")" = 20 ] || fail "cam rate"
+  [ "$(json "d['replay']['pairing']['pairs']")" = 40 ] || fail "pairs"
+  [ "$(json "d['streams']['cam0']['gaps']")" = 0 ] || fail "gaps"
+  ;;
+replay_bad_input)
+  mkdir -p "$tmp/r"; cp -r "$rec/mav0" "$tmp/r/"; chmod -R u+w "$tmp/r"
+  sed -i '5s/.*/1403715273462142976,0.1,zz,0.3,0.4,0.5,0.6/' "$tmp/r/mav0/imu0/data.csv"
+  run replay "$tmp/r" --fast; expect_rc 3; one_err_line
+  expect_err "imu0/data.csv:5: w_y (column 3) must be a finite number, got 'zz'"
+  cp "$rec/mav0/imu0/data.csv" "$tmp/r/mav0/imu0/data.csv"
+  sed -i '7d' "$tmp/r/mav0/cam1/data.csv"   # a left frame without its right
+  run replay "$tmp/r" --fast --strict; expect_rc 3; one_err_line
+  expect_err "cam0/data.csv:7: left frame 1403715273512143104 has no right frame"
+  run replay "$tmp/r" --fast --stats; expect_rc 0
+  expect_out "unpaired left 1, right 0"
+  expect_err "cam0 frame 1403715273512143104 has no partner"
+  ;;
+record_roundtrip)
+  run record --board "$src/board/sim.yaml" --out "$tmp/copy" --fast; expect_rc 0
+  expect_out "recorded 491 IMU rows, 40 + 40 frames"
+  for f in cam0/data.csv cam1/data.csv imu0/data.csv; do
+    cmp -s "$rec/mav0/$f" "$tmp/copy/mav0/$f" || fail "$f differs"
+  done
+  python3 - "$rec" "$tmp/copy" <<'PY' || fail "images differ"
+import sys, zlib, struct
+def pixels(path):  # decode an 8-bit gray non-interlaced PNG with the standard library
+    data = open(path, 'rb').read()
+    pos, idat, w, h = 8, b'', 0, 0
+    while pos < len(data):
+        n, kind = struct.unpack('>I4s', data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + n]
+        if kind == b'IHDR': w, h = struct.unpack('>II', body[:8])
+        if kind == b'IDAT': idat += body
+        pos += 12 + n
+    raw, out, prev = zlib.decompress(idat), bytearray(), bytearray(w)
+    for y in range(h):
+        f, line = raw[y * (w + 1)], bytearray(raw[y * (w + 1) + 1:(y + 1) * (w + 1)])
+        for x in range(w):
+            a = line[x - 1] if x else 0; b = prev[x]; c = prev[x - 1] if x else 0
+            if f == 1: line[x] = (line[x] + a) & 255
+            elif f == 2: line[x] = (line[x] + b) & 255
+            elif f == 3: line[x] = (line[x] + (a + b) // 2) & 255
+            elif f == 4:
+                p = a + b - c; pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+                line[x] = (line[x] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
+        out += line; prev = line
+    return w, h, bytes(out)
+import os
+a, b = sys.argv[1], sys.argv[2]
+for cam in ('cam0', 'cam1'):
+    names = sorted(os.listdir(f'{a}/mav0/{cam}/data'))
+    assert names == sorted(os.listdir(f'{b}/mav0/{cam}/data')), cam
+    for n in names[::9]:
+        assert pixels(f'{a}/mav0/{cam}/data/{n}') == pixels(f'{b}/mav0/{cam}/data/{n}'), n
+PY
+  run replay "$tmp/copy" --stats --fast; expect_rc 0
+  expect_out "40 pairs, unpaired left 0, right 0"; expect_out "imu0     491 samples"
+  run record --board "$src/board/sim.yaml" --out "$tmp/copy" --fast; expect_rc 3
+  expect_err "already holds a recording"
+  ;;
+run_sim)
+  run run --board "$src/board/sim.yaml" --out "$tmp/out_dir" --fast --json; expect_rc 0
+  [ "$(json "d['replay']['pairing']['pairs']")" = 40 ] || fail "pairs"
+  [ "$(json "d['imu']['still']")" = True ] || fail "not still"
+  python3 -c "import json,sys; d=json.load(open('$tmp/out')); sys.exit(0 if d['imu']['gravity_error_vs_ground_truth_deg'] < 1.0 else 1)" || fail "gravity error"
+  [ -s "$tmp/out_dir/run_summary.json" ] || fail "no run_summary.json"
+  [ -s "$tmp/out_dir/first_stereo_pair.png" ] || fail "no first_stereo_pair.png"
+  run run --board "$src/board/rpi5.yaml" --check; expect_rc 0; expect_out "board rpi5"
+  printf 'board: {name: x}\nsource: replay\nreplay: {recording: r, sped: 2}\n' >"$tmp/bad.yaml"
+  run run --board "$tmp/bad.yaml" --check; expect_rc 3; one_err_line
+  expect_err "bad.yaml:3: unknown key 'replay.sped'"
+  ;;
+*)
+  fail "unknown case" ;;
+esac
+echo "ok [$case_name]"

@@ -1,0 +1,125 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file test_yaml_board.cpp
+/// @brief The YAML tree's typed getters and the board files' schema check.
+#include <gtest/gtest.h>
+
+#include "test_support.hpp"
+#include "wallar/drivers/config/yaml.hpp"
+#include "wallar/firmware/board.hpp"
+
+namespace wallar::test {
+namespace {
+
+using config::YamlDocument;
+using firmware::parse_board;
+using ::testing::HasSubstr;
+
+TEST(Yaml, ReadsOpenCvAndKalibrMatrices) {
+  const auto doc = YamlDocument::parse(
+      "%YAML:1.0\n"
+      "cv: !!opencv-matrix\n  rows: 2\n  cols: 2\n  dt: d\n  data: [1, 2, 3, 4]\n"
+      "kalibr:\n  - [1, 2]\n  - [3, 4]\n"
+      "flat: [1, 2, 3, 4]\n"
+      "addr: 0x68\n",
+      "m.yaml");
+  for (const char* key : {"cv", "kalibr", "flat"}) {
+    const Eigen::MatrixXd m = doc.root().at(key).as_matrix(2, 2);
+    EXPECT_EQ(m(0, 1), 2.0) << key;
+    EXPECT_EQ(m(1, 0), 3.0) << key;
+  }
+  EXPECT_EQ(doc.root().at("addr").as_int(), 0x68);
+}
+
+TEST(Yaml, ErrorsNameFileLineAndKeyPath) {
+  const auto doc = YamlDocument::parse("a:\n  b:\n    c: twelve\n", "x.yaml");
+  EXPECT_THAT(input_error_of([&] { (void)doc.root().at("a").at("b").at("c").as_int(); }),
+              HasSubstr("x.yaml:3: 'a.b.c' must be an integer, got 'twelve'"));
+  EXPECT_THAT(input_error_of([&] { (void)doc.root().at("a").at("z"); }),
+              HasSubstr("x.yaml:2: missing key 'a.z'"));
+}
+
+TEST(Yaml, RefusesAliasesDuplicatesAndDeepNesting) {
+  EXPECT_THAT(input_error_of([] { (void)YamlDocument::parse("a: &x 1\nb: *x\n", "y.yaml"); }),
+              HasSubstr("y.yaml:2: YAML aliases are not supported"));
+  EXPECT_THAT(input_error_of([] { (void)YamlDocument::parse("a: 1\na: 2\n", "y.yaml"); }),
+              HasSubstr("y.yaml:2: duplicate key 'a'"));
+  EXPECT_THAT(input_error_of([] {
+                (void)YamlDocument::parse(std::string(100, '[') + std::string(100, ']'), "d.yaml");
+              }),
+              HasSubstr("d.yaml:1: YAML nested too deeply"));
+  EXPECT_THAT(input_error_of([] { (void)YamlDocument::parse("", "e.yaml"); }),
+              HasSubstr("e.yaml: empty YAML document"));
+}
+
+TEST(Board, TheShippedBoardFilesLoad) {
+  const auto sim = firmware::load_board(fs::path(WALLAR_SOURCE_DIR) / "board" / "sim.yaml");
+  EXPECT_EQ(sim.name, "sim");
+  EXPECT_EQ(sim.source, firmware::BoardConfig::Source::kReplay);
+  EXPECT_TRUE(fs::is_directory(sim.replay.recording / "mav0")) << sim.replay.recording;
+  EXPECT_EQ(sim.display.backend, "headless");
+
+  const auto pi = firmware::load_board(fs::path(WALLAR_SOURCE_DIR) / "board" / "rpi5.yaml");
+  EXPECT_EQ(pi.source, firmware::BoardConfig::Source::kLive);
+  EXPECT_EQ(pi.imu.driver, "icm20948");
+  EXPECT_EQ(pi.imu.bus, "/dev/i2c-1");
+  EXPECT_EQ(pi.imu.address, 0x68);
+  ASSERT_TRUE(pi.imu.data_ready);
+  EXPECT_EQ(pi.imu.data_ready->chip, "gpiochip4");
+  EXPECT_EQ(pi.imu.data_ready->line, 24);
+  EXPECT_EQ(pi.cameras[1].usb_id, "32e4:9750");
+  EXPECT_EQ(pi.cameras[0].pixel_format, "YUYV");
+  EXPECT_EQ(pi.display.connector, "HDMI-A-1");
+  ASSERT_TRUE(pi.exit_button);
+  EXPECT_TRUE(pi.exit_button->active_low);
+}
+
+constexpr const char* kLiveBoard = R"(board:
+  name: test
+source: live
+cameras:
+  left: {device: /dev/video0, width: 640, height: 480, fps: 30}
+  right: {device: /dev/video2, width: 640, height: 480, fps: 30}
+imu:
+  driver: icm20948
+  bus: /dev/i2c-1
+  address: 0x69
+)";
+
+std::string board_error(std::string text) {
+  return input_error_of([&] { (void)parse_board(text, "b.yaml", "."); });
+}
+
+TEST(Board, UnknownKeyIsNamedWithItsLine) {
+  std::string text = kLiveBoard;
+  text.replace(text.find("address"), 7, "adress");
+  EXPECT_THAT(board_error(text), HasSubstr("b.yaml:10: unknown key 'imu.adress' (allowed: "));
+}
+
+TEST(Board, MissingKeyIsNamed) {
+  std::string text = kLiveBoard;
+  text.replace(text.find("  bus: /dev/i2c-1\n"), 18, "");
+  EXPECT_THAT(board_error(text), HasSubstr("b.yaml:8: missing key 'imu.bus'"));
+}
+
+TEST(Board, WrongTypesAndRangesAreNamed) {
+  std::string text = kLiveBoard;
+  text.replace(text.find("0x69"), 4, "0x80");
+  EXPECT_THAT(board_error(text), HasSubstr("b.yaml:10: 'imu.address' must be a 7-bit address"));
+  text = kLiveBoard;
+  text.replace(text.find("fps: 30}"), 8, "fps: fast}");
+  EXPECT_THAT(board_error(text), HasSubstr("b.yaml:5: 'cameras.left.fps' must be a finite number"));
+  text = kLiveBoard;
+  text.replace(text.find("source: live"), 12, "source: cloud");
+  EXPECT_THAT(board_error(text), HasSubstr("b.yaml:3: 'source' must be one of replay, live"));
+}
+
+TEST(Board, RelativeRecordingPathsResolveAgainstTheBoardFile) {
+  const auto b = parse_board("board: {name: s}\nsource: replay\nreplay: {recording: ../rec}\n",
+                             "dir/b.yaml", "/opt/wallar/board");
+  EXPECT_EQ(b.replay.recording, fs::path("/opt/wallar/rec"));
+  EXPECT_THAT(board_error("board: {name: s}\nsource: replay\nreplay: {recording: r, rate: -1}\n"),
+              HasSubstr("b.yaml:3: 'replay.rate' must be >= 0"));
+}
+
+}  // namespace
+}  // namespace wallar::test
