@@ -197,8 +197,10 @@ double YamlNode::as_double() const {
   const char* begin = s.data();
   const char* end = s.data() + s.size();
   if (begin != end && *begin == '+') ++begin;
+  // from_chars takes a '-' of its own: without this check "+-1" would read as -1.
+  const bool sign_after_plus = begin != s.data() && begin != end && *begin == '-';
   const auto [ptr, ec] = std::from_chars(begin, end, value);
-  if (ec != std::errc() || ptr != end || !std::isfinite(value)) {
+  if (sign_after_plus || ec != std::errc() || ptr != end || !std::isfinite(value)) {
     fail("must be a finite number, got '" + printable(s) + "'");
   }
   return value;
@@ -219,8 +221,10 @@ std::int64_t YamlNode::as_int() const {
     base = 16;
     begin += 2;
   }
+  // from_chars takes a '-' of its own: without this check "--5" and "-0x-5" would read as 5.
+  const bool second_sign = begin != end && (*begin == '-' || *begin == '+');
   const auto [ptr, ec] = std::from_chars(begin, end, value, base);
-  if (begin == end || ec != std::errc() || ptr != end) {
+  if (begin == end || second_sign || ec != std::errc() || ptr != end) {
     fail("must be an integer, got '" + printable(s) + "'");
   }
   return negative ? -value : value;

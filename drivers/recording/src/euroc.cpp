@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -39,8 +40,10 @@ SE3d read_T(const config::YamlNode& node) {
   const Eigen::Matrix4d m = node.as_matrix(4, 4);
   const Eigen::Matrix3d R = m.topLeftCorner<3, 3>();
   // A rotation must be orthonormal with det +1; a typo in a calibration file is caught here.
-  if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-3 ||
-      R.determinant() < 0.0) {
+  // Written so that NaN fails too: huge finite entries (1e200) overflow R^T R to inf - inf.
+  const double orthonormality_error =
+      (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (!m.allFinite() || !(orthonormality_error <= 1e-3) || !(R.determinant() > 0.0)) {
     node.fail("is not a rigid transform (rotation part not orthonormal)");
   }
   SE3d T = SE3d::Identity();
@@ -151,11 +154,14 @@ CameraCalibration parse_camera_sensor_yaml(std::string_view text, const std::str
   c.T_body_cam = read_T(root.at("T_BS"));
   c.rate_hz = root.at("rate_hz").as_double();
   const std::vector<double> res = root.at("resolution").as_doubles(2);
+  // Check before converting: a double outside int's range (1e10) makes the cast undefined.
+  for (const double px : res) {
+    if (!(px >= 1.0 && px <= 16384.0) || px != std::floor(px)) {
+      root.at("resolution").fail("must be two positive pixel counts");
+    }
+  }
   c.width_px = static_cast<int>(res[0]);
   c.height_px = static_cast<int>(res[1]);
-  if (c.width_px <= 0 || c.height_px <= 0 || c.width_px > 16384 || c.height_px > 16384) {
-    root.at("resolution").fail("must be two positive pixel counts");
-  }
   const std::string model = root.get_string("camera_model", "pinhole");
   if (model != "pinhole") root.at("camera_model").fail("must be 'pinhole', got '" + model + "'");
   const std::vector<double> k = root.at("intrinsics").as_doubles(4);
