@@ -30,3 +30,14 @@ if(WALLAR_SANITIZE)
                       -fno-sanitize-recover=all)
   add_link_options(-fsanitize=${_wallar_san})
 endif()
+
+# libFuzzer (tests/fuzz): clang only. Our own code gets the coverage instrumentation libFuzzer
+# steers by (fuzzer-no-link); the fuzz executables add -fsanitize=fuzzer for the driver.
+if(WALLAR_BUILD_FUZZ)
+  if(NOT CMAKE_CXX_COMPILER_ID MATCHES "Clang")
+    message(FATAL_ERROR "WALLAR_BUILD_FUZZ needs clang (libFuzzer), not ${CMAKE_CXX_COMPILER_ID}; "
+                        "use the 'fuzz' preset or -DCMAKE_CXX_COMPILER=clang++")
+  endif()
+  target_compile_options(wallar_build_flags INTERFACE -fsanitize=fuzzer-no-link)
+  target_link_options(wallar_build_flags INTERFACE -fsanitize=fuzzer-no-link)
+endif()
