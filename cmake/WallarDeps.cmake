@@ -12,6 +12,7 @@ pkg_check_modules(YAML REQUIRED IMPORTED_TARGET yaml-0.1)
 pkg_check_modules(PNG REQUIRED IMPORTED_TARGET libpng)
 find_package(CLI11 CONFIG REQUIRED)
 find_package(nlohmann_json 3.10 REQUIRED)
+find_package(hwy REQUIRED)  # Highway: portable SIMD with run-time dispatch
 
 set(WALLAR_OPENCV_MODULES core imgproc)
 find_package(OpenCV QUIET COMPONENTS ${WALLAR_OPENCV_MODULES})

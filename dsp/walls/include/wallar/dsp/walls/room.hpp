@@ -1,0 +1,75 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file room.hpp
+/// @brief The room model: walls, floor and ceiling found one after another (thesis §5.2).
+///
+/// Each found surface's inliers are removed before the next search. With gravity, walls are
+/// vertical planes (2-D search) and floor/ceiling horizontal ones (normal parallel to gravity,
+/// the floor below the viewpoints, the ceiling above); without, every surface is a 3-D wall.
+/// Optionally walls are kept Manhattan (parallel or perpendicular to the first within a
+/// tolerance). Near-duplicate planes are merged. Each surface gets an extent polygon (the
+/// convex hull of its inliers in its own plane) and an id that stays the same across updates
+/// where a surface matches one of the previous model (the previous planes also warm-start the
+/// search).
+///
+/// Threading: one RoomEstimator per thread.
+#pragma once
+
+#include <optional>
+#include <vector>
+
+#include "wallar/core/wall.hpp"
+#include "wallar/dsp/walls/wall_detector.hpp"
+
+namespace wallar::dsp {
+
+struct RoomConfig {
+  DetectorConfig detector;
+  std::optional<Eigen::Vector3d> gravity;  //!< "down" in the cloud's frame; enables 2-D mode
+  std::vector<Eigen::Vector3d> viewpoints{Eigen::Vector3d::Zero()};
+  int max_surfaces = 6;
+  std::uint32_t min_inliers = 12;      //!< smaller surfaces are not reported
+  double min_inlier_fraction = 0.02;   //!< ... nor those under this share of the points
+  bool manhattan = false;
+  double manhattan_tolerance_deg = 5.0;
+  double merge_angle_deg = 5.0;
+  double merge_offset_m = 0.1;
+  double id_match_angle_deg = 10.0;  //!< a surface keeps a previous id within these
+  double id_match_offset_m = 0.25;
+};
+
+struct RoomSurface {
+  Wall wall;
+  double score = 0.0;
+  double rmse_m = 0.0;
+  std::uint32_t rounds = 0;
+};
+
+struct RoomResult {
+  WallModel model;
+  std::vector<RoomSurface> surfaces;  //!< same order as model.walls
+  std::uint32_t rounds = 0;           //!< all searches together
+  std::size_t points = 0;             //!< finite points searched
+  std::size_t skipped_non_finite = 0;
+};
+
+class RoomEstimator {
+ public:
+  explicit RoomEstimator(std::size_t max_points) : detector_(max_points, {}) {}
+
+  /// Estimates the room from `cloud`; `previous` (may be null) warm-starts and supplies ids.
+  RoomResult estimate(const PointCloud& cloud, const RoomConfig& config,
+                      const WallModel* previous = nullptr);
+
+ private:
+  WallDetector detector_;
+  std::vector<Eigen::Vector3d> inliers_;
+};
+
+/// Convex hull (counter-clockwise, Andrew's monotone chain) of 2-D points.
+std::vector<Eigen::Vector2d> convex_hull(std::vector<Eigen::Vector2d> points);
+
+/// Fills wall.origin/u/v/extent_uv_m from the wall's inliers (u horizontal when `up` is given).
+void set_extent(Wall& wall, const std::vector<Eigen::Vector3d>& inliers,
+                const std::optional<Eigen::Vector3d>& up);
+
+}  // namespace wallar::dsp

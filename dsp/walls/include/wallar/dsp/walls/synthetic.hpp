@@ -1,0 +1,79 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file synthetic.hpp
+/// @brief Labelled synthetic scenes: the thesis's artificial scene (§4.1), a cluttered sparse
+/// map with a small wall, and a box room. Deterministic for a seed.
+///
+/// Frames: camera-like, x right, y down, z forward; the viewpoint is the origin looking
+/// along +z; gravity is +y ("down"). Noise is uniform across each surface (full width).
+///
+/// Threading: pure functions.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "wallar/core/plane.hpp"
+#include "wallar/core/point_cloud.hpp"
+
+namespace wallar::dsp {
+
+enum class PointLabel : std::uint8_t {
+  kWall,        //!< on the wall to find
+  kFrontPlane,  //!< on the decoy plane in front of the wall
+  kBacklier,    //!< behind the wall (mismatch, reflection, window)
+  kOutlier,     //!< anywhere in front of the wall
+  kFloor,
+  kCeiling,
+  kOtherWall,   //!< room scenes: the walls other than the first
+};
+
+struct LabelledCloud {
+  PointCloud cloud;
+  std::vector<PointLabel> labels;
+  Plane wall;  //!< ground truth of the wall to find (n toward the viewpoint)
+  std::vector<Plane> surfaces;  //!< room scenes: every surface, in label order
+};
+
+/// §4.1: a wall_size x wall_size wall at wall_distance (normal along z); a plane_size square
+/// plane at plane_distance with more points than the wall; backliers behind the wall with
+/// probability rho_b (N_back = rho_b / (1 - rho_b) * N_wall); uniform outliers in front.
+struct ThesisSceneParams {
+  std::size_t wall_points = 100;
+  std::size_t plane_points = 150;
+  std::size_t outliers = 100;
+  double rho_b = 0.3;
+  double noise_m = 0.1;
+  double wall_distance_m = 2.0;
+  double wall_size_m = 4.0;
+  double plane_distance_m = 1.0;
+  double plane_size_m = 1.0;
+  double backlier_depth_m = 1.0;  //!< backliers spread this far behind the wall
+  std::uint64_t seed = 1;
+};
+LabelledCloud make_thesis_scene(const ThesisSceneParams& p);
+
+/// A sparse map as a tracker makes it: `points` in all, `wall_fraction` of them on a 4 x 3 m
+/// wall at wall_distance, the rest clutter filling the room in front of it, plus backliers.
+struct SparseMapParams {
+  std::size_t points = 2000;
+  double wall_fraction = 0.035;
+  double rho_b = 0.1;
+  double noise_m = 0.02;
+  double wall_distance_m = 3.0;
+  std::uint64_t seed = 1;
+};
+LabelledCloud make_sparse_map(const SparseMapParams& p);
+
+/// A box room (x in [-w/2, w/2], y from ceiling -h_up to floor +h_down, z in [-d/2, d/2])
+/// around the viewpoint, with points on its 4 walls, floor and ceiling and clutter inside.
+struct RoomSceneParams {
+  double width_m = 6.0, depth_m = 5.0;
+  double floor_below_m = 1.6, ceiling_above_m = 1.2;  //!< from the viewpoint
+  std::size_t points_per_surface = 150;
+  std::size_t clutter = 200;
+  double noise_m = 0.02;
+  std::uint64_t seed = 1;
+};
+LabelledCloud make_room_scene(const RoomSceneParams& p);
+
+}  // namespace wallar::dsp

@@ -1,0 +1,544 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file wall_detector.cpp
+/// @brief Backlier-aware RANSAC: sampling, candidate checks, scoring, adaptive rounds, LO.
+#include "wallar/dsp/walls/wall_detector.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <math.h>  // lgamma_r
+#include <limits>
+#include <stdexcept>
+
+namespace wallar::dsp {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+constexpr double kMinusInf = -std::numeric_limits<double>::infinity();
+
+int sample_size(int mode) { return mode == 0 ? 3 : mode == 1 ? 2 : 1; }
+
+}  // namespace
+
+double binomial_log_score(std::uint32_t inliers, std::uint32_t backliers, double rho_b) {
+  if (inliers == 0) return kMinusInf;
+  const double n = static_cast<double>(inliers) + backliers;
+  const double k = backliers;
+  const double rho = std::clamp(rho_b, 1e-9, 1.0 - 1e-9);
+  // lgamma_r: plain lgamma writes the global signgam, a data race between detector threads.
+  int sign = 0;
+  const double log_choose =
+      ::lgamma_r(n + 1.0, &sign) - ::lgamma_r(k + 1.0, &sign) - ::lgamma_r(n - k + 1.0, &sign);
+  return std::log(static_cast<double>(inliers)) + log_choose + k * std::log(rho) +
+         (n - k) * std::log1p(-rho);
+}
+
+double binomial_min_inliers(double log_score, double rho_b, std::size_t n_points) {
+  // The best score N inliers can reach is at the most likely backlier count k* (the mode of
+  // the binomial); that bound grows with N, so the smallest N above log_score is found by
+  // bisection.
+  const double rho = std::clamp(rho_b, 1e-9, 1.0 - 1e-9);
+  const auto best_with = [rho](std::uint32_t n_in) {
+    const auto mode = static_cast<std::uint32_t>(std::floor(rho / (1.0 - rho) * n_in));
+    return std::max(binomial_log_score(n_in, mode, rho), binomial_log_score(n_in, mode + 1, rho));
+  };
+  std::uint32_t lo = 1, hi = static_cast<std::uint32_t>(std::max<std::size_t>(n_points, 1));
+  if (best_with(hi) <= log_score) return hi;
+  while (lo < hi) {
+    const std::uint32_t mid = lo + (hi - lo) / 2;
+    if (best_with(mid) > log_score) hi = mid; else lo = mid + 1;
+  }
+  return lo;
+}
+
+std::uint32_t rounds_needed(double p_good, double confidence, std::uint32_t max_rounds) {
+  if (!(p_good > 0.0)) return max_rounds;
+  if (p_good >= 1.0) return 1;
+  const double n = std::log1p(-confidence) / std::log1p(-p_good);
+  if (!(n < static_cast<double>(max_rounds))) return max_rounds;
+  return std::max<std::uint32_t>(1, static_cast<std::uint32_t>(std::ceil(n)));
+}
+
+std::optional<Plane> fit_plane_least_squares(std::span<const Eigen::Vector3d> points) {
+  if (points.size() < 3) return std::nullopt;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : points) mean += p;
+  mean /= static_cast<double>(points.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : points) cov += (p - mean) * (p - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  if (eig.info() != Eigen::Success) return std::nullopt;
+  // Degenerate (collinear) when the two largest spreads are not both clearly non-zero.
+  if (!(eig.eigenvalues()(1) > 1e-12 * std::max(1.0, eig.eigenvalues()(2)))) return std::nullopt;
+  Plane plane;
+  plane.n = eig.eigenvectors().col(0).normalized();
+  plane.d = plane.n.dot(mean);
+  return plane;
+}
+
+WallDetector::WallDetector(std::size_t max_points, DetectorConfig config)
+    : config_(config), capacity_(max_points), rng_(config.seed) {
+  const std::size_t cap = (max_points + kPointPadding - 1) / kPointPadding * kPointPadding +
+                          kPointPadding;
+  x_.assign(cap, kNaN);
+  y_.assign(cap, kNaN);
+  z_.assign(cap, kNaN);
+  nb_index_.assign(cap * config_.neighbours, 0);
+  nb_count_.assign(cap, 0);
+  grid_key_.assign(cap, 0);
+  grid_order_.assign(cap, 0);
+  scratch_points_.reserve(cap);
+  viewpoints_.reserve(64);
+  viewpoints_.emplace_back(Eigen::Vector3f::Zero());
+}
+
+void WallDetector::set_viewpoints(std::span<const Eigen::Vector3d> viewpoints) {
+  if (viewpoints.empty()) throw std::invalid_argument("at least one viewpoint is needed");
+  if (viewpoints.size() > viewpoints_.capacity()) {
+    throw std::length_error("more viewpoints than the detector holds (64)");
+  }
+  viewpoints_.clear();
+  for (const auto& v : viewpoints) viewpoints_.push_back((R_work_input_ * v).cast<float>());
+}
+
+void WallDetector::pad() {
+  for (std::size_t i = n_; i < padded(); ++i) x_[i] = y_[i] = z_[i] = kNaN;
+}
+
+void WallDetector::set_points(const PointCloud& cloud, std::optional<Eigen::Vector3d> gravity) {
+  if (cloud.size() > capacity_) {
+    throw std::length_error("cloud has more points than the detector was sized for");
+  }
+  // Viewpoints are kept in the working frame: take them back to the input frame first.
+  std::array<Eigen::Vector3d, 64> vp_input;
+  const std::size_t n_vp = viewpoints_.size();
+  for (std::size_t i = 0; i < n_vp; ++i) {
+    vp_input[i] = R_work_input_.transpose() * viewpoints_[i].cast<double>();
+  }
+  has_gravity_ = gravity.has_value();
+  R_work_input_ = Eigen::Matrix3d::Identity();
+  if (gravity) {
+    if (!(gravity->norm() > 1e-9)) throw std::invalid_argument("gravity vector is zero");
+    R_work_input_ =
+        Eigen::Quaterniond::FromTwoVectors(-gravity->normalized(), Eigen::Vector3d::UnitZ())
+            .toRotationMatrix();
+  }
+  viewpoints_.clear();
+  for (std::size_t i = 0; i < n_vp; ++i) {
+    viewpoints_.push_back((R_work_input_ * vp_input[i]).cast<float>());
+  }
+  const Eigen::Matrix3f R = R_work_input_.cast<float>();
+  n_ = 0;
+  skipped_ = 0;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3f p(cloud.x[i], cloud.y[i], cloud.z[i]);
+    if (!p.allFinite()) {
+      ++skipped_;
+      continue;
+    }
+    const Eigen::Vector3f q = R * p;
+    x_[n_] = q.x();
+    y_[n_] = q.y();
+    z_[n_] = q.z();
+    ++n_;
+  }
+  pad();
+  nb_valid_ = false;
+}
+
+void WallDetector::set_manhattan(std::optional<Eigen::Vector3d> axis, double tolerance_rad) {
+  manhattan_axis_.reset();
+  manhattan_tol_rad_ = tolerance_rad;
+  if (!axis) return;
+  Eigen::Vector3f a = (R_work_input_ * *axis).cast<float>();
+  a.z() = 0.0f;
+  if (a.norm() > 1e-6f) manhattan_axis_ = a.normalized();
+}
+
+PlaneCounts WallDetector::evaluate(const Eigen::Vector3f& n, float d) const {
+  return score_plane(x_.data(), y_.data(), z_.data(), padded(), n.x(), n.y(), n.z(), d,
+                     static_cast<float>(config_.threshold_m));
+}
+
+double WallDetector::rho_for_binomial() const {
+  return config_.rho_b >= 0.0 ? config_.rho_b : std::max(rho_estimate_, 1e-3);
+}
+
+double WallDetector::score_of(const PlaneCounts& c) const {
+  switch (config_.method) {
+    case ScoreMethod::kRansac:
+      return c.inliers;
+    case ScoreMethod::kMsac: {
+      const double t2 = config_.threshold_m * config_.threshold_m;
+      return static_cast<double>(c.inliers) - static_cast<double>(c.inlier_sq_sum) / t2;
+    }
+    case ScoreMethod::kBsf:
+      return static_cast<double>(c.inliers) - config_.beta * c.backliers;
+    case ScoreMethod::kBinomial:
+      return binomial_log_score(c.inliers, c.backliers, rho_for_binomial());
+  }
+  return c.inliers;
+}
+
+bool WallDetector::orient_and_check(Mode mode, Eigen::Vector3f& n, float& d) const {
+  // Every viewpoint must see the same side, not too close: else it is no wall of this room.
+  int side = 0;
+  const auto min_dist = static_cast<float>(config_.min_viewpoint_distance_m);
+  for (const Eigen::Vector3f& v : viewpoints_) {
+    const float s = n.dot(v) - d;
+    if (!(std::abs(s) >= min_dist)) return false;
+    const int this_side = s > 0.0f ? 1 : -1;
+    if (side != 0 && this_side != side) return false;
+    side = this_side;
+  }
+  if (side < 0) {
+    n = -n;
+    d = -d;
+  }
+  if (mode == Mode::k3d && config_.facing_check) {
+    // The wall's front must face the camera: it looks along view_dir into the wall.
+    const Eigen::Vector3f view = (R_work_input_ * config_.view_dir).cast<float>();
+    if (!(n.dot(view) < 0.0f)) return false;
+  }
+  if (mode == Mode::kVertical && manhattan_axis_) {
+    const float c = std::abs(n.x() * manhattan_axis_->x() + n.y() * manhattan_axis_->y());
+    const float s = std::abs(n.x() * manhattan_axis_->y() - n.y() * manhattan_axis_->x());
+    // |angle| mod 90 degrees: close to parallel (s ~ 0) or perpendicular (c ~ 0).
+    if (std::min(s, c) > std::sin(static_cast<float>(manhattan_tol_rad_))) return false;
+  }
+  return true;
+}
+
+bool WallDetector::sample(Mode mode, bool guided, Eigen::Vector3f& n, float& d) {
+  const auto point = [this](std::uint32_t i) { return Eigen::Vector3f(x_[i], y_[i], z_[i]); };
+  const std::uint32_t i0 = draw(n_);
+  const std::uint32_t k = mode == Mode::kHorizontal ? 0 : nb_count_[i0];
+  const bool use_nb = guided && k >= static_cast<std::uint32_t>(sample_size(static_cast<int>(mode)) - 1);
+  auto other = [&]() -> std::uint32_t {
+    if (use_nb) return nb_index_[std::size_t{i0} * config_.neighbours + draw(k)];
+    return draw(n_);
+  };
+  switch (mode) {
+    case Mode::kHorizontal:
+      n = Eigen::Vector3f::UnitZ();
+      d = z_[i0];
+      return true;
+    case Mode::kVertical: {
+      const std::uint32_t i1 = other();
+      if (i1 == i0) return false;
+      const Eigen::Vector2f a(x_[i0], y_[i0]);
+      const Eigen::Vector2f v = Eigen::Vector2f(x_[i1], y_[i1]) - a;
+      const float len = v.norm();
+      if (!(len > 1e-6f)) return false;  // coincident on the ground plane
+      n = Eigen::Vector3f(-v.y() / len, v.x() / len, 0.0f);
+      d = n.x() * a.x() + n.y() * a.y();
+      return true;
+    }
+    case Mode::k3d: {
+      const std::uint32_t i1 = other();
+      const std::uint32_t i2 = other();
+      if (i1 == i0 || i2 == i0 || i1 == i2) return false;
+      const Eigen::Vector3f a = point(i0);
+      const Eigen::Vector3f ab = point(i1) - a;
+      const Eigen::Vector3f ac = point(i2) - a;
+      const Eigen::Vector3f c = ab.cross(ac);
+      const float norm = c.norm();
+      // Collinear or coincident: the cross product is tiny relative to the edge lengths.
+      if (!(norm > 1e-4f * ab.norm() * ac.norm()) || !(norm > 1e-12f)) return false;
+      n = c / norm;
+      d = n.dot(a);
+      return true;
+    }
+  }
+  return false;
+}
+
+void WallDetector::build_neighbours(Mode mode) {
+  const std::uint32_t K = config_.neighbours;
+  std::fill_n(nb_count_.begin(), n_, 0);
+  nb_mode_ = mode;
+  nb_valid_ = true;
+  if (n_ < 2 || K == 0) return;
+  const bool planar = mode == Mode::kVertical;
+  Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
+  Eigen::Vector3f hi = -lo;
+  for (std::size_t i = 0; i < n_; ++i) {
+    const Eigen::Vector3f p(x_[i], y_[i], planar ? 0.0f : z_[i]);
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  // Cell size: about 2K points expected in the 3^dim cells around a point.
+  const Eigen::Vector3f ext = (hi - lo).cwiseMax(1e-3f);
+  const double dims = planar ? 2.0 : 3.0;
+  const double volume = planar ? double{ext.x()} * ext.y() : double{ext.x()} * ext.y() * ext.z();
+  double h = config_.neighbour_radius_m > 0.0
+                 ? config_.neighbour_radius_m
+                 : std::pow(volume * 2.0 * K / (std::pow(3.0, dims) * static_cast<double>(n_)),
+                            1.0 / dims);
+  h = std::max(h, 1e-3);
+  const auto cells = [&](float v, float l) {
+    return static_cast<std::int32_t>(std::min(1023.0, std::floor((v - l) / h)));
+  };
+  const auto key = [](std::int32_t ix, std::int32_t iy, std::int32_t iz) {
+    return static_cast<std::uint32_t>((ix << 20) | (iy << 10) | iz);
+  };
+  for (std::size_t i = 0; i < n_; ++i) {
+    grid_key_[i] = key(cells(x_[i], lo.x()), cells(y_[i], lo.y()),
+                       planar ? 0 : cells(z_[i], lo.z()));
+    grid_order_[i] = static_cast<std::uint32_t>(i);
+  }
+  std::sort(grid_order_.begin(), grid_order_.begin() + static_cast<std::ptrdiff_t>(n_),
+            [&](std::uint32_t a, std::uint32_t b) { return grid_key_[a] < grid_key_[b]; });
+  // Keys in sorted order, reusing the key array's tail is not possible: look up through order.
+  const auto first_with_key = [&](std::uint32_t k) {
+    return std::lower_bound(grid_order_.begin(), grid_order_.begin() + static_cast<std::ptrdiff_t>(n_), k,
+                            [&](std::uint32_t idx, std::uint32_t kk) { return grid_key_[idx] < kk; });
+  };
+  std::array<std::pair<float, std::uint32_t>, 64> heap;
+  const std::uint32_t keep = std::min<std::uint32_t>(K, 64);
+  for (std::size_t i = 0; i < n_; ++i) {
+    const std::int32_t cx = cells(x_[i], lo.x());
+    const std::int32_t cy = cells(y_[i], lo.y());
+    const std::int32_t cz = planar ? 0 : cells(z_[i], lo.z());
+    std::size_t heap_size = 0;
+    const int zr = planar ? 0 : 1;
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -zr; dz <= zr; ++dz) {
+          const std::int32_t ix = cx + dx, iy = cy + dy, iz = cz + dz;
+          if (ix < 0 || iy < 0 || iz < 0 || ix > 1023 || iy > 1023 || iz > 1023) continue;
+          const std::uint32_t k = key(ix, iy, iz);
+          for (auto it = first_with_key(k);
+               it != grid_order_.begin() + static_cast<std::ptrdiff_t>(n_) && grid_key_[*it] == k; ++it) {
+            const std::uint32_t j = *it;
+            if (j == i) continue;
+            const float ddx = x_[j] - x_[i], ddy = y_[j] - y_[i];
+            const float ddz = planar ? 0.0f : z_[j] - z_[i];
+            const float dist2 = ddx * ddx + ddy * ddy + ddz * ddz;
+            if (heap_size < keep) {
+              heap[heap_size++] = {dist2, j};
+              std::push_heap(heap.begin(), heap.begin() + static_cast<std::ptrdiff_t>(heap_size));
+            } else if (dist2 < heap[0].first) {
+              std::pop_heap(heap.begin(), heap.begin() + static_cast<std::ptrdiff_t>(heap_size));
+              heap[heap_size - 1] = {dist2, j};
+              std::push_heap(heap.begin(), heap.begin() + static_cast<std::ptrdiff_t>(heap_size));
+            }
+          }
+        }
+      }
+    }
+    for (std::size_t m = 0; m < heap_size; ++m) nb_index_[i * K + m] = heap[m].second;
+    nb_count_[i] = static_cast<std::uint8_t>(heap_size);
+  }
+}
+
+double WallDetector::guided_inlier_fraction(const Eigen::Vector3f& n, float d) const {
+  const auto t = static_cast<float>(config_.threshold_m);
+  const auto inlier = [&](std::uint32_t i) {
+    return std::abs(n.x() * x_[i] + n.y() * y_[i] + n.z() * z_[i] - d) < t;
+  };
+  double sum = 0.0;
+  std::size_t count = 0;
+  for (std::uint32_t i = 0; i < n_; ++i) {
+    if (!inlier(i) || nb_count_[i] == 0) continue;
+    std::uint32_t hits = 0;
+    for (std::uint32_t m = 0; m < nb_count_[i]; ++m) {
+      hits += inlier(nb_index_[std::size_t{i} * config_.neighbours + m]) ? 1 : 0;
+    }
+    sum += static_cast<double>(hits) / nb_count_[i];
+    ++count;
+  }
+  return count ? sum / static_cast<double>(count) : 0.0;
+}
+
+bool WallDetector::refit(Mode mode, Eigen::Vector3f& n, float& d) const {
+  const auto t = static_cast<float>(config_.threshold_m);
+  scratch_points_.clear();
+  for (std::size_t i = 0; i < n_; ++i) {
+    if (std::abs(n.x() * x_[i] + n.y() * y_[i] + n.z() * z_[i] - d) < t) {
+      scratch_points_.emplace_back(x_[i], y_[i], z_[i]);
+    }
+  }
+  const std::size_t m = scratch_points_.size();
+  if (m < static_cast<std::size_t>(sample_size(static_cast<int>(mode)))) return false;
+  Eigen::Vector3f n_new;
+  float d_new = 0.0f;
+  if (mode == Mode::kHorizontal) {
+    double zsum = 0.0;
+    for (const auto& p : scratch_points_) zsum += p.z();
+    n_new = Eigen::Vector3f::UnitZ();
+    d_new = static_cast<float>(zsum / static_cast<double>(m));
+  } else if (mode == Mode::kVertical) {
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (const auto& p : scratch_points_) mean += p.head<2>();
+    mean /= static_cast<double>(m);
+    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+    for (const auto& p : scratch_points_) cov += (p.head<2>() - mean) * (p.head<2>() - mean).transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+    if (eig.info() != Eigen::Success || !(eig.eigenvalues()(1) > 1e-12)) return false;
+    const Eigen::Vector2d nn = eig.eigenvectors().col(0).normalized();
+    n_new = Eigen::Vector3f(static_cast<float>(nn.x()), static_cast<float>(nn.y()), 0.0f);
+    d_new = static_cast<float>(nn.dot(mean));
+  } else {
+    const auto plane = fit_plane_least_squares(scratch_points_);
+    if (!plane) return false;
+    n_new = plane->n.cast<float>();
+    d_new = static_cast<float>(plane->d);
+  }
+  if (n_new.dot(n) < 0.0f) {
+    n_new = -n_new;
+    d_new = -d_new;
+  }
+  n = n_new;
+  d = d_new;
+  return true;
+}
+
+Detection WallDetector::detect(Mode mode, std::span<const Plane> warm_start) {
+  Detection best;
+  if (n_ < static_cast<std::size_t>(sample_size(static_cast<int>(mode)))) return best;
+  if (mode != Mode::k3d && !has_gravity_) {
+    throw std::logic_error("2-D and horizontal detection need a gravity direction");
+  }
+  // B-RANSAC without a given rho_b: estimate it from the wall a BSF pass finds (beta 0.5
+  // works up to rho_b > 0.5 on the thesis's scenes), then search again with it.
+  if (config_.method == ScoreMethod::kBinomial && config_.rho_b < 0.0) {
+    const DetectorConfig saved = config_;
+    config_.method = ScoreMethod::kBsf;
+    config_.beta = 0.5;
+    const Detection first = detect(mode, warm_start);
+    config_ = saved;
+    const double total = static_cast<double>(first.inliers) + first.backliers;
+    rho_estimate_ = total > 0.0 ? std::clamp(first.backliers / total, 1e-3, 0.9) : 0.05;
+  }
+
+  const bool guided = config_.sampling == Sampling::kGuided && mode != Mode::kHorizontal;
+  if (guided && (!nb_valid_ || nb_mode_ != mode)) build_neighbours(mode);
+  const int m = sample_size(static_cast<int>(mode));
+  double best_score = kMinusInf;
+  Eigen::Vector3f best_n = Eigen::Vector3f::UnitZ();
+  float best_d = 0.0f;
+  PlaneCounts best_counts;
+  std::uint32_t target = config_.max_rounds;
+
+  const auto consider = [&](Eigen::Vector3f n, float d) {
+    if (!orient_and_check(mode, n, d)) {
+      ++best.candidates_skipped;
+      return;
+    }
+    PlaneCounts c = evaluate(n, d);
+    double s = score_of(c);
+    if (!(s > best_score)) return;
+    // Local optimisation: refit on the inliers while that improves the score.
+    for (int it = 0; it < config_.local_optimisation_iterations; ++it) {
+      Eigen::Vector3f n2 = n;
+      float d2 = d;
+      if (!refit(mode, n2, d2) || !orient_and_check(mode, n2, d2)) break;
+      const PlaneCounts c2 = evaluate(n2, d2);
+      const double s2 = score_of(c2);
+      if (!(s2 > s)) break;
+      n = n2;
+      d = d2;
+      c = c2;
+      s = s2;
+    }
+    best_score = s;
+    best_n = n;
+    best_d = d;
+    best_counts = c;
+    // Eq. 2.7, for the smallest inlier ratio a plane could have and still beat this score:
+    // every score here is at most N_in (log N_in for B-RANSAC), so a winner has N_in above
+    // it. With plain RANSAC that is the best's own ratio; with backlier-aware scores it is
+    // lower, so a decoy found early (a table in front of the wall) does not end the search.
+    const double w_best = static_cast<double>(c.inliers) / static_cast<double>(n_);
+    const double n_min = config_.method == ScoreMethod::kBinomial
+                             ? binomial_min_inliers(s, rho_for_binomial(), n_)
+                             : s;
+    const double w = std::clamp(n_min / static_cast<double>(n_), 1.0 / static_cast<double>(n_), w_best);
+    // Uniform rounds draw m inliers with probability w^m; guided rounds with w * q^(m-1), q
+    // the fraction of an inlier's neighbours that are inliers, measured on the best plane and
+    // scaled down with the inlier count (a sparser plane has sparser neighbourhoods).
+    double p_good = std::pow(w, m);
+    if (guided) {
+      const double q = guided_inlier_fraction(n, d) * (w / w_best);
+      p_good = 0.5 * p_good + 0.5 * w * std::pow(q, m - 1);
+    }
+    target = rounds_needed(p_good, config_.confidence, config_.max_rounds);
+  };
+
+  for (const Plane& p : warm_start) {
+    const Eigen::Vector3d nw = R_work_input_ * p.n;
+    if (mode == Mode::kVertical && std::abs(nw.z()) > 0.2) continue;
+    if (mode == Mode::kHorizontal && std::abs(nw.z()) < 0.8) continue;
+    consider(nw.cast<float>(), static_cast<float>(p.d));
+  }
+  std::uint32_t round = 0;
+  for (; round < config_.max_rounds; ++round) {
+    if (round >= config_.min_rounds && round >= target) break;
+    Eigen::Vector3f n;
+    float d = 0.0f;
+    if (!sample(mode, guided && (round & 1u), n, d)) {
+      ++best.candidates_skipped;
+      continue;
+    }
+    consider(n, d);
+  }
+  best.rounds = round;
+  if (best_score == kMinusInf || best_counts.inliers == 0) return best;
+  best.found = true;
+  best.plane.n = R_work_input_.transpose() * best_n.cast<double>().normalized();
+  best.plane.d = best_d;
+  best.inliers = best_counts.inliers;
+  best.backliers = best_counts.backliers;
+  best.score = best_score;
+  best.rmse_m = std::sqrt(static_cast<double>(best_counts.inlier_sq_sum) / best_counts.inliers);
+  const double total = static_cast<double>(best.inliers) + best.backliers;
+  best.rho_b = config_.method == ScoreMethod::kBinomial ? rho_for_binomial() : best.backliers / total;
+  best.rounds_needed = target;
+  return best;
+}
+
+Detection WallDetector::detect_3d(std::span<const Plane> warm_start) {
+  return detect(Mode::k3d, warm_start);
+}
+Detection WallDetector::detect_vertical(std::span<const Plane> warm_start) {
+  return detect(Mode::kVertical, warm_start);
+}
+Detection WallDetector::detect_horizontal(std::span<const Plane> warm_start) {
+  return detect(Mode::kHorizontal, warm_start);
+}
+
+std::size_t WallDetector::remove_inliers(const Plane& plane) {
+  const Eigen::Vector3f n = (R_work_input_ * plane.n).cast<float>();
+  const auto d = static_cast<float>(plane.d);
+  const auto t = static_cast<float>(config_.threshold_m);
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < n_; ++i) {
+    if (std::abs(n.x() * x_[i] + n.y() * y_[i] + n.z() * z_[i] - d) < t) continue;
+    x_[kept] = x_[i];
+    y_[kept] = y_[i];
+    z_[kept] = z_[i];
+    ++kept;
+  }
+  const std::size_t removed = n_ - kept;
+  n_ = kept;
+  pad();
+  nb_valid_ = false;
+  return removed;
+}
+
+void WallDetector::inliers_of(const Plane& plane, std::vector<Eigen::Vector3d>& out) const {
+  out.clear();
+  const Eigen::Vector3f n = (R_work_input_ * plane.n).cast<float>();
+  const auto d = static_cast<float>(plane.d);
+  const auto t = static_cast<float>(config_.threshold_m);
+  const Eigen::Matrix3d R_input_work = R_work_input_.transpose();
+  for (std::size_t i = 0; i < n_; ++i) {
+    if (std::abs(n.x() * x_[i] + n.y() * y_[i] + n.z() * z_[i] - d) < t) {
+      out.push_back(R_input_work * Eigen::Vector3d(x_[i], y_[i], z_[i]));
+    }
+  }
+}
+
+}  // namespace wallar::dsp

@@ -1,0 +1,315 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file test_walls.cpp
+/// @brief Wall detection: kernel, scores, the thesis's artificial scene, 2-D mode, the room.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "wallar/dsp/walls/plane_kernel.hpp"
+#include "wallar/dsp/walls/room.hpp"
+#include "wallar/dsp/walls/synthetic.hpp"
+#include "wallar/dsp/walls/wall_detector.hpp"
+
+namespace wallar::dsp {
+namespace {
+
+const Eigen::Vector3d kGravity(0.0, 9.81, 0.0);  // camera frame: y is down
+
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+// Success as the evaluation defines it: normal within 5 degrees, offset within 0.1 m.
+bool is_plane(const Plane& found, const Plane& truth) {
+  return angle_deg(found.n, truth.n) < 5.0 && std::abs(found.d - truth.d) < 0.1;
+}
+
+TEST(PlaneKernel, SimdMatchesScalarOnRandomClouds) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-3.0f, 3.0f);
+  for (std::size_t n : {16u, 48u, 1024u, 4096u}) {
+    std::vector<float> x(n), y(n), z(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      x[i] = u(rng);
+      y[i] = u(rng);
+      z[i] = u(rng);
+    }
+    const Eigen::Vector3f nrm = Eigen::Vector3f(0.3f, -0.5f, 0.8f).normalized();
+    const PlaneCounts a = score_plane(x.data(), y.data(), z.data(), n, nrm.x(), nrm.y(), nrm.z(), 0.4f, 0.2f);
+    const PlaneCounts b = score_plane_scalar(x.data(), y.data(), z.data(), n, nrm.x(), nrm.y(), nrm.z(), 0.4f, 0.2f);
+    EXPECT_EQ(a.inliers, b.inliers) << n << " points, target " << plane_kernel_target();
+    EXPECT_EQ(a.backliers, b.backliers);
+    EXPECT_NEAR(a.inlier_sq_sum, b.inlier_sq_sum, 1e-4f * b.inlier_sq_sum + 1e-6f);
+    EXPECT_GT(a.inliers, 0u);
+    EXPECT_GT(a.backliers, 0u);
+  }
+}
+
+TEST(PlaneKernel, CountsInliersAndBackliersOfAHandBuiltCloud) {
+  // Plane z = 2 seen from the origin: n = -z, d = -2. Points at z = 1.5 (front), 1.98 and 2.03
+  // (inliers at t = 0.05), 2.5 and 3 (behind), and NaN padding.
+  std::vector<float> x(16, 0.0f), y(16, 0.0f), z(16, std::nanf(""));
+  const float zs[] = {1.5f, 1.98f, 2.03f, 2.5f, 3.0f};
+  std::copy(std::begin(zs), std::end(zs), z.begin());
+  const PlaneCounts c = score_plane(x.data(), y.data(), z.data(), 16, 0, 0, -1, -2, 0.05f);
+  EXPECT_EQ(c.inliers, 2u);
+  EXPECT_EQ(c.backliers, 2u);
+  EXPECT_NEAR(c.inlier_sq_sum, 0.02f * 0.02f + 0.03f * 0.03f, 1e-6f);
+}
+
+TEST(Scores, BinomialLogScoreIsTheLogOfEq34) {
+  // N_in = 10, N_back = 2, rho = 0.2: 10 * C(12,2) 0.2^2 0.8^10 = 10 * 66 * 0.04 * 0.10737...
+  const double expected = std::log(10.0 * 66.0 * 0.04 * std::pow(0.8, 10));
+  EXPECT_NEAR(binomial_log_score(10, 2, 0.2), expected, 1e-9);
+  // Never underflows: 10^5 inliers and backliers stay finite in log space.
+  EXPECT_TRUE(std::isfinite(binomial_log_score(100000, 90000, 0.01)));
+  EXPECT_EQ(binomial_log_score(0, 5, 0.1), -std::numeric_limits<double>::infinity());
+}
+
+TEST(Scores, RoundsFollowEq27) {
+  // The thesis's checks: 654 points, 18 on the wall, p = 0.9, m = 3: about 100,000 rounds;
+  // 14 of 654 in 2-D, p = 0.99: about 10,000.
+  EXPECT_NEAR(rounds_needed(std::pow(18.0 / 654.0, 3), 0.9, 10'000'000), 110'000, 5'000);
+  EXPECT_NEAR(rounds_needed(std::pow(14.0 / 654.0, 2), 0.99, 10'000'000), 10'000, 500);
+  EXPECT_EQ(rounds_needed(0.0, 0.99, 777), 777u);
+  EXPECT_EQ(rounds_needed(1.0, 0.99, 777), 1u);
+}
+
+TEST(Scores, EachScoreOnAHandBuiltCloud) {
+  // A wall at z = 2 with 40 points and 30 behind it; a table at z = 1 with 60 points.
+  PointCloud cloud;
+  for (int i = 0; i < 40; ++i) cloud.push_back({-1.0f + 0.05f * i, static_cast<float>(i % 7) * 0.2f - 0.6f, 2.0f});
+  // Backliers scattered in depth (they must not form a plane of their own).
+  for (int i = 0; i < 30; ++i) cloud.push_back({-1.0f + 0.06f * i, static_cast<float>(i % 5) * 0.2f - 0.4f, 2.2f + 0.029f * static_cast<float>((i * 7) % 30)});
+  for (int i = 0; i < 60; ++i) cloud.push_back({-0.5f + 0.015f * i, static_cast<float>(i % 9) * 0.1f - 0.4f, 1.0f});
+  DetectorConfig cfg;
+  cfg.threshold_m = 0.02;
+  cfg.sampling = Sampling::kUniform;
+  cfg.max_rounds = 3000;
+  cfg.min_rounds = 3000;
+  const Plane wall{-Eigen::Vector3d::UnitZ(), -2.0};
+  const Plane table{-Eigen::Vector3d::UnitZ(), -1.0};
+  // Plain RANSAC and MSAC take the table (60 > 40 inliers): the table has 70 backliers.
+  for (ScoreMethod m : {ScoreMethod::kRansac, ScoreMethod::kMsac}) {
+    cfg.method = m;
+    WallDetector det(cloud.size(), cfg);
+    det.set_points(cloud);
+    const Detection d = det.detect_3d();
+    ASSERT_TRUE(d.found);
+    EXPECT_TRUE(is_plane(d.plane, table)) << static_cast<int>(m);
+    EXPECT_EQ(d.inliers, 60u);
+    EXPECT_EQ(d.backliers, 70u);
+  }
+  // BSF with beta = 0.6: table 60 - 0.6 * 70 = 18 < wall 40 - 0.6 * 30 = 22.
+  cfg.method = ScoreMethod::kBsf;
+  cfg.beta = 0.6;
+  {
+    WallDetector det(cloud.size(), cfg);
+    det.set_points(cloud);
+    const Detection d = det.detect_3d();
+    EXPECT_TRUE(is_plane(d.plane, wall));
+    EXPECT_EQ(d.inliers, 40u);
+    EXPECT_EQ(d.backliers, 30u);
+    EXPECT_NEAR(d.score, 40 - 0.6 * 30, 1e-9);
+  }
+  // B-RANSAC with rho = 30/70: the wall's backliers are exactly as expected, the table's not.
+  cfg.method = ScoreMethod::kBinomial;
+  cfg.rho_b = 30.0 / 70.0;
+  {
+    WallDetector det(cloud.size(), cfg);
+    det.set_points(cloud);
+    const Detection d = det.detect_3d();
+    EXPECT_TRUE(is_plane(d.plane, wall));
+    EXPECT_NEAR(d.score, binomial_log_score(40, 30, 30.0 / 70.0), 1e-9);
+  }
+}
+
+TEST(Detector, DegenerateCloudsGiveNoNanPlanes) {
+  PointCloud line;  // all collinear, plus coincident copies
+  for (int i = 0; i < 50; ++i) line.push_back({0.1f * (i % 10), 0.0f, 2.0f});
+  WallDetector det(line.size(), {});
+  det.set_points(line);
+  const Detection d = det.detect_3d();
+  EXPECT_FALSE(d.found);
+  EXPECT_GT(d.candidates_skipped, 0u);
+  EXPECT_TRUE(d.plane.n.allFinite());
+}
+
+TEST(Detector, NonFinitePointsAreSkippedAndCounted) {
+  auto scene = make_thesis_scene({});
+  scene.cloud.push_back({std::nanf(""), 0.0f, 1.0f});
+  scene.cloud.push_back({0.0f, std::numeric_limits<float>::infinity(), 1.0f});
+  WallDetector det(scene.cloud.size(), {});
+  det.set_points(scene.cloud);
+  EXPECT_EQ(det.skipped_non_finite(), 2u);
+  EXPECT_EQ(det.size(), scene.cloud.size() - 2);
+}
+
+// The thesis's artificial scene (§4.1): plain RANSAC picks the front plane, which has more
+// points; BSF-RANSAC and B-RANSAC pick the wall. Over 20 seeds each.
+TEST(ThesisScene, RansacPicksThePlaneBackliersAwareScoresPickTheWall) {
+  int ransac_plane = 0, bsf_wall = 0, binomial_wall = 0, binomial_est_wall = 0, rho_close = 0;
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    ThesisSceneParams p;
+    p.seed = seed;
+    const auto scene = make_thesis_scene(p);
+    const Plane front{-Eigen::Vector3d::UnitZ(), -p.plane_distance_m};
+    DetectorConfig cfg;
+    cfg.threshold_m = 0.1;
+    cfg.seed = seed;
+    auto run = [&](ScoreMethod m, double rho) {
+      cfg.method = m;
+      cfg.rho_b = rho;
+      WallDetector det(scene.cloud.size(), cfg);
+      det.set_points(scene.cloud);
+      return det.detect_3d();
+    };
+    ransac_plane += is_plane(run(ScoreMethod::kRansac, -1).plane, front);
+    bsf_wall += is_plane(run(ScoreMethod::kBsf, -1).plane, scene.wall);
+    binomial_wall += is_plane(run(ScoreMethod::kBinomial, 0.3).plane, scene.wall);
+    const Detection est = run(ScoreMethod::kBinomial, -1);
+    binomial_est_wall += is_plane(est.plane, scene.wall);
+    rho_close += std::abs(est.rho_b - 0.3) < 0.1;  // rho_b estimated from the data
+  }
+  EXPECT_GE(rho_close, 18);
+  EXPECT_GE(ransac_plane, 19);
+  EXPECT_GE(bsf_wall, 19);
+  EXPECT_GE(binomial_wall, 19);
+  EXPECT_GE(binomial_est_wall, 19);
+}
+
+// Gravity-aligned 2-D mode on the thesis scene, rotated so that the camera looks down 20
+// degrees and rolls 10: gravity in the camera frame is rotated the same way.
+TEST(TwoDMode, FindsTheWallInAGravityRotatedScene) {
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(20 * M_PI / 180, Eigen::Vector3d::UnitX()) *
+                             Eigen::AngleAxisd(10 * M_PI / 180, Eigen::Vector3d::UnitZ()))
+                                .toRotationMatrix();
+  int found = 0;
+  for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+    ThesisSceneParams p;
+    p.seed = seed;
+    auto scene = make_thesis_scene(p);
+    PointCloud rotated;
+    for (std::size_t i = 0; i < scene.cloud.size(); ++i) {
+      rotated.push_back((R * scene.cloud.point(i).cast<double>()).cast<float>());
+    }
+    const Plane truth{R * scene.wall.n, scene.wall.d};
+    DetectorConfig cfg;
+    cfg.threshold_m = 0.1;
+    cfg.seed = seed;
+    WallDetector det(rotated.size(), cfg);
+    det.set_points(rotated, R * kGravity);
+    const Detection d = det.detect_vertical();
+    ASSERT_TRUE(d.found);
+    found += is_plane(d.plane, truth);
+    EXPECT_LT(std::abs(d.plane.n.dot((R * kGravity).normalized())), 1e-6) << "not vertical";
+    EXPECT_LT(d.rounds, 2000u);
+  }
+  EXPECT_GE(found, 9);
+}
+
+TEST(SparseMap, ASmallWallIsFoundWithFewRoundsByGuidedSampling) {
+  int found_3d = 0, found_2d = 0;
+  std::uint64_t rounds_3d = 0;
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    SparseMapParams p;
+    p.seed = seed;
+    const auto scene = make_sparse_map(p);
+    DetectorConfig cfg;
+    cfg.threshold_m = 0.03;
+    cfg.seed = seed;
+    WallDetector det(scene.cloud.size(), cfg);
+    det.set_points(scene.cloud);
+    const Detection d3 = det.detect_3d();
+    found_3d += is_plane(d3.plane, scene.wall);
+    rounds_3d += d3.rounds;
+    det.set_points(scene.cloud, kGravity);
+    found_2d += is_plane(det.detect_vertical().plane, scene.wall);
+  }
+  EXPECT_GE(found_3d, 19);
+  EXPECT_GE(found_2d, 19);
+  // Uniform sampling would need about 110,000 rounds (eq. 2.7, 3.5 % inliers, 99 %).
+  EXPECT_LT(rounds_3d / 20, 20'000u);
+}
+
+TEST(Room, FourWallsFloorAndCeilingWithKindsExtentsAndStableIds) {
+  RoomSceneParams p;
+  const auto scene = make_room_scene(p);
+  RoomConfig cfg;
+  cfg.detector.threshold_m = 0.04;
+  cfg.gravity = kGravity;
+  cfg.max_surfaces = 8;
+  cfg.manhattan = true;
+  RoomEstimator room(10'000);
+  const RoomResult r = room.estimate(scene.cloud, cfg);
+  ASSERT_EQ(r.model.walls.size(), 6u);
+  int walls = 0, floors = 0, ceilings = 0;
+  for (const Wall& w : r.model.walls) {
+    walls += w.kind == SurfaceKind::kWall;
+    floors += w.kind == SurfaceKind::kFloor;
+    ceilings += w.kind == SurfaceKind::kCeiling;
+    EXPECT_GT(w.plane.signed_distance(Eigen::Vector3d::Zero()), 0.0) << "front toward viewer";
+    // Each surface is one of the truth's, with its extent about the truth's size.
+    bool matched = false;
+    for (const Plane& t : scene.surfaces) matched |= is_plane(w.plane, t);
+    EXPECT_TRUE(matched) << "id " << w.id << " n " << w.plane.n.transpose() << " d " << w.plane.d;
+    ASSERT_GE(w.extent_uv_m.size(), 3u);
+    double area = 0.0;  // shoelace
+    for (std::size_t i = 0; i < w.extent_uv_m.size(); ++i) {
+      const auto& a = w.extent_uv_m[i];
+      const auto& b = w.extent_uv_m[(i + 1) % w.extent_uv_m.size()];
+      area += a.x() * b.y() - a.y() * b.x();
+    }
+    area = 0.5 * area;
+    EXPECT_GT(area, 0.0) << "counter-clockwise";
+    const double height = p.floor_below_m + p.ceiling_above_m;
+    const double expected = w.kind != SurfaceKind::kWall ? p.width_m * p.depth_m
+                            : std::abs(w.plane.n.x()) > 0.9 ? p.depth_m * height
+                                                            : p.width_m * height;
+    EXPECT_NEAR(area, expected, 0.2 * expected) << "id " << w.id;
+    if (w.kind == SurfaceKind::kWall) {
+      EXPECT_LT(std::abs(w.v.dot(kGravity.normalized()) + 1.0), 1e-6) << "v is up";
+    }
+  }
+  EXPECT_EQ(walls, 4);
+  EXPECT_EQ(floors, 1);
+  EXPECT_EQ(ceilings, 1);
+
+  // The map grows (another seed's points added): the same surfaces keep their ids.
+  RoomSceneParams p2 = p;
+  p2.seed = 2;
+  auto grown = scene.cloud;
+  const auto more = make_room_scene(p2);
+  for (std::size_t i = 0; i < more.cloud.size(); ++i) grown.push_back(more.cloud.point(i));
+  const RoomResult r2 = room.estimate(grown, cfg, &r.model);
+  ASSERT_EQ(r2.model.walls.size(), 6u);
+  EXPECT_EQ(r2.model.version, 2u);
+  for (const Wall& w2 : r2.model.walls) {
+    bool same_id = false;
+    for (const Wall& w1 : r.model.walls) same_id |= w1.id == w2.id && is_plane(w1.plane, w2.plane);
+    EXPECT_TRUE(same_id) << "id " << w2.id;
+  }
+}
+
+TEST(Room, ThreeDModeWithoutGravityReportsWalls) {
+  const auto scene = make_thesis_scene({});
+  RoomConfig cfg;
+  cfg.detector.threshold_m = 0.1;
+  cfg.max_surfaces = 1;
+  RoomEstimator room(1000);
+  const RoomResult r = room.estimate(scene.cloud, cfg);
+  ASSERT_EQ(r.model.walls.size(), 1u);
+  EXPECT_EQ(r.model.walls[0].kind, SurfaceKind::kWall);
+  EXPECT_TRUE(is_plane(r.model.walls[0].plane, scene.wall));
+}
+
+TEST(Hull, ConvexHullOfASquareWithInteriorPoints) {
+  const auto hull = convex_hull({{0, 0}, {1, 0}, {1, 1}, {0, 1}, {0.5, 0.5}, {0.2, 0.7}, {1, 0}});
+  ASSERT_EQ(hull.size(), 4u);
+  EXPECT_EQ(hull[0], Eigen::Vector2d(0, 0));
+  EXPECT_EQ(hull[1], Eigen::Vector2d(1, 0));
+}
+
+}  // namespace
+}  // namespace wallar::dsp
