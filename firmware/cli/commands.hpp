@@ -15,8 +15,8 @@ namespace wallar::cli {
 enum ExitCode : int {
   kExitOk = 0,
   kExitFailure = 1,   //!< a runtime failure (device, I/O)
-  kExitUsage = 2,     //!< bad command line
-  kExitBadInput = 3,  //!< a bad input file (recording, board, calibration)
+  kExitUsage = 2,     //!< bad command line or bad input file: the user's to fix
+  kExitBadInput = 2,  //!< a bad input file (recording, board, calibration, cloud)
   kExitInterrupted = 130,
 };
 
@@ -27,6 +27,8 @@ std::atomic<bool>& stop_requested();
 void add_run_command(CLI::App& app, std::function<int()>& run);
 void add_replay_command(CLI::App& app, std::function<int()>& run);
 void add_record_command(CLI::App& app, std::function<int()>& run);
+void add_bench_command(CLI::App& app, std::function<int()>& run);
+void add_walls_command(CLI::App& app, std::function<int()>& run);
 
 }  // namespace wallar::cli
 

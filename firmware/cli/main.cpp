@@ -42,6 +42,8 @@ int main(int argc, char** argv) {
   add_run_command(app, run);
   add_replay_command(app, run);
   add_record_command(app, run);
+  add_bench_command(app, run);
+  add_walls_command(app, run);
 
   try {
     app.parse(argc, argv);
@@ -63,6 +65,9 @@ int main(int argc, char** argv) {
   } catch (const wallar::InputError& e) {
     std::fprintf(stderr, "wallar: error: %s\n", e.what());
     return kExitBadInput;
+  } catch (const CLI::Error& e) {  // an option value found wrong after parsing
+    std::fprintf(stderr, "wallar: error: %s\n", e.what());
+    return kExitUsage;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "wallar: error: %s\n", e.what());
     return kExitFailure;

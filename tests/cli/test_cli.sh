@@ -47,11 +47,11 @@ replay_stats)
 replay_bad_input)
   mkdir -p "$tmp/r"; cp -r "$rec/mav0" "$tmp/r/"; chmod -R u+w "$tmp/r"
   sed -i '5s/.*/1403715273462142976,0.1,zz,0.3,0.4,0.5,0.6/' "$tmp/r/mav0/imu0/data.csv"
-  run replay "$tmp/r" --fast; expect_rc 3; one_err_line
+  run replay "$tmp/r" --fast; expect_rc 2; one_err_line
   expect_err "imu0/data.csv:5: w_y (column 3) must be a finite number, got 'zz'"
   cp "$rec/mav0/imu0/data.csv" "$tmp/r/mav0/imu0/data.csv"
   sed -i '7d' "$tmp/r/mav0/cam1/data.csv"   # a left frame without its right
-  run replay "$tmp/r" --fast --strict; expect_rc 3; one_err_line
+  run replay "$tmp/r" --fast --strict; expect_rc 2; one_err_line
   expect_err "cam0/data.csv:7: left frame 1403715273512143104 has no right frame"
   run replay "$tmp/r" --fast --stats; expect_rc 0
   expect_out "unpaired left 1, right 0"
@@ -97,7 +97,7 @@ for cam in ('cam0', 'cam1'):
 PY
   run replay "$tmp/copy" --stats --fast; expect_rc 0
   expect_out "40 pairs, unpaired left 0, right 0"; expect_out "imu0     491 samples"
-  run record --board "$src/board/sim.yaml" --out "$tmp/copy" --fast; expect_rc 3
+  run record --board "$src/board/sim.yaml" --out "$tmp/copy" --fast; expect_rc 2
   expect_err "already holds a recording"
   ;;
 run_sim)
@@ -109,8 +109,56 @@ run_sim)
   [ -s "$tmp/out_dir/first_stereo_pair.png" ] || fail "no first_stereo_pair.png"
   run run --board "$src/board/rpi5.yaml" --check; expect_rc 0; expect_out "board rpi5"
   printf 'board: {name: x}\nsource: replay\nreplay: {recording: r, sped: 2}\n' >"$tmp/bad.yaml"
-  run run --board "$tmp/bad.yaml" --check; expect_rc 3; one_err_line
+  run run --board "$tmp/bad.yaml" --check; expect_rc 2; one_err_line
   expect_err "bad.yaml:3: unknown key 'replay.sped'"
+  ;;
+walls)
+  pcd="$src/tests/data/pcl/sac_plane_test.pcd"
+  run walls "$pcd" --method msac --threshold 0.03 --max-walls 1 --json -; expect_rc 0
+  [ "$(json "d['points']")" = 3283 ] || fail "points"
+  [ "$(json "d['surfaces'][0]['inliers'] > 2000")" = True ] || fail "inliers"
+  [ "$(json "abs(-d['surfaces'][0]['normal'][0] / d['surfaces'][0]['d'] + 0.8964) < 0.1")" = True ] || fail "coefficients"
+  # A box room as CSV (y down, camera at the origin): 4 walls, floor and ceiling.
+  python3 - "$tmp/room.csv" <<'PY'
+import random, sys
+random.seed(5)
+with open(sys.argv[1], 'w') as f:
+    f.write('x,y,z\n')
+    u = random.uniform
+    for _ in range(150):
+        f.write(f'{u(-3,3)},{u(-1.2,1.6)},{2.5+u(-.01,.01)}\n'); f.write(f'{u(-3,3)},{u(-1.2,1.6)},{-2.5+u(-.01,.01)}\n')
+        f.write(f'{3+u(-.01,.01)},{u(-1.2,1.6)},{u(-2.5,2.5)}\n'); f.write(f'{-3+u(-.01,.01)},{u(-1.2,1.6)},{u(-2.5,2.5)}\n')
+        f.write(f'{u(-3,3)},{1.6+u(-.01,.01)},{u(-2.5,2.5)}\n'); f.write(f'{u(-3,3)},{-1.2+u(-.01,.01)},{u(-2.5,2.5)}\n')
+    f.write('nan,0,1\n')
+PY
+  run walls "$tmp/room.csv" --gravity 0,9.81,0 --threshold 0.04 --manhattan --json "$tmp/room.json" --ply "$tmp/room.ply"
+  expect_rc 0; expect_out "floor"; expect_out "ceiling"; expect_out "1 non-finite skipped"
+  python3 - "$tmp/room.json" <<'PY' || fail "room json"
+import json, sys
+d = json.load(open(sys.argv[1]))
+kinds = sorted(s['kind'] for s in d['surfaces'])
+assert kinds == ['ceiling', 'floor', 'wall', 'wall', 'wall', 'wall'], kinds
+assert sorted(s['id'] for s in d['surfaces']) == [1, 2, 3, 4, 5, 6]
+for s in d['surfaces']:
+    assert s['d'] < 0, s  # n toward the viewpoint at the origin: n.0 - d > 0
+    assert len(s['extent']) >= 3
+floor = [s for s in d['surfaces'] if s['kind'] == 'floor'][0]
+assert floor['normal'][1] < -0.99, floor  # floor's front is up (-y)
+PY
+  head -c 200 "$tmp/room.ply" | grep -q "element vertex 900" || fail "ply header"
+  ;;
+walls_bad_input)
+  : >"$tmp/empty.ply"
+  run walls "$tmp/empty.ply"; expect_rc 2; one_err_line; expect_err "empty.ply"
+  printf 'x,y,z\n1,2,3\n4,5,6\n' >"$tmp/two.csv"
+  run walls "$tmp/two.csv"; expect_rc 2; one_err_line; expect_err "needs at least 3 valid points, has 2"
+  head -c 3000 "$src/tests/data/pcl/sac_plane_test.pcd" >"$tmp/cut.pcd"
+  run walls "$tmp/cut.pcd"; expect_rc 2; one_err_line; expect_err "cut.pcd"
+  run walls "$src/tests/data/pcl/sac_plane_test.pcd" --gravity 0,0,0; expect_rc 2; one_err_line
+  expect_err "--gravity"
+  run walls "$src/tests/data/pcl/sac_plane_test.pcd" --method magic; expect_rc 2
+  printf 'ply\nformat ascii 1.0\nelement vertex 1\nproperty list uchar int x\nend_header\n' >"$tmp/list.ply"
+  run walls "$tmp/list.ply"; expect_rc 2; one_err_line; expect_err "list.ply"
   ;;
 *)
   fail "unknown case" ;;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <random>
 
+#include "wallar/drivers/cloud/cloud_io.hpp"
 #include "wallar/dsp/walls/plane_kernel.hpp"
 #include "wallar/dsp/walls/room.hpp"
 #include "wallar/dsp/walls/synthetic.hpp"
@@ -309,6 +310,37 @@ TEST(Hull, ConvexHullOfASquareWithInteriorPoints) {
   ASSERT_EQ(hull.size(), 4u);
   EXPECT_EQ(hull[0], Eigen::Vector2d(0, 0));
   EXPECT_EQ(hull[1], Eigen::Vector2d(1, 0));
+}
+
+}  // namespace
+}  // namespace wallar::dsp
+
+namespace wallar::dsp {
+namespace {
+
+// PCL's own reference (test/sac_plane_test.pcd): at a 0.03 threshold, more than 2,000
+// inliers, and (a/d, b/d, c/d) = (-0.8964, -0.5868, -1.208) within 0.1 for ax + by + cz + d = 0.
+TEST(PclReference, PlaneOfSacPlaneTestPcd) {
+  const PointCloud cloud =
+      cloud::read_cloud(std::filesystem::path(WALLAR_TEST_DATA) / "pcl" / "sac_plane_test.pcd");
+  ASSERT_EQ(cloud.size(), 3283u);
+  for (ScoreMethod method : {ScoreMethod::kRansac, ScoreMethod::kBsf}) {
+    DetectorConfig cfg;
+    cfg.method = method;
+    cfg.threshold_m = 0.03;
+    cfg.facing_check = false;  // a plain plane fit: no camera in this cloud
+    cfg.min_viewpoint_distance_m = 0.0;
+    WallDetector det(cloud.size(), cfg);
+    det.set_points(cloud);
+    const Detection d = det.detect_3d();
+    ASSERT_TRUE(d.found);
+    EXPECT_GT(d.inliers, 2000u);
+    // Ours is n.p - d = 0, so PCL's d is -d.
+    const Eigen::Vector3d pcl_ratio = -d.plane.n / d.plane.d;
+    EXPECT_NEAR(pcl_ratio.x(), -0.8964, 0.1);
+    EXPECT_NEAR(pcl_ratio.y(), -0.5868, 0.1);
+    EXPECT_NEAR(pcl_ratio.z(), -1.208, 0.1);
+  }
 }
 
 }  // namespace

@@ -486,6 +486,22 @@ Detection WallDetector::detect(Mode mode, std::span<const Plane> warm_start) {
   }
   best.rounds = round;
   if (best_score == kMinusInf || best_counts.inliers == 0) return best;
+  // Algorithm 4, line 15: the wall is the least-squares plane of the best candidate's
+  // inliers. Count-based scores have flat optima (any tilt that keeps the band full scores
+  // the same); the refit takes the plane to the middle of its inliers. Counts are re-taken.
+  {
+    Eigen::Vector3f n = best_n;
+    float d = best_d;
+    if (refit(mode, n, d) && orient_and_check(mode, n, d)) {
+      const PlaneCounts c = evaluate(n, d);
+      if (c.inliers > 0) {
+        best_n = n;
+        best_d = d;
+        best_counts = c;
+        best_score = score_of(c);
+      }
+    }
+  }
   best.found = true;
   best.plane.n = R_work_input_.transpose() * best_n.cast<double>().normalized();
   best.plane.d = best_d;

@@ -1,0 +1,259 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file cmd_bench.cpp
+/// @brief `wallar bench walls`: Google Benchmark cases of wall detection, run in-process, so the
+/// figures come from the very binary that ships (and run on the board, or under qemu).
+///
+///  - walls/kernel/{simd,scalar}/N: dsp::score_plane (run-time dispatched SIMD) and the scalar
+///    reference on an in-cache cloud of N points; counters items_per_second (point-tests) and
+///    ns_per_point_test; the label names the SIMD target.
+///  - walls/detect_{3d,2d}/{guided,uniform}: set_points + detect_3d / detect_vertical on
+///    dsp::make_sparse_map (2000 points, 3.5 % wall), one detection per iteration over the
+///    scenes of seeds 1..kSeeds; counters success_pct (normal within 5 deg and offset within
+///    0.1 m of the scene's wall) and mean_rounds.
+///
+/// Google Benchmark flags pass through after `--`; `--json FILE` writes JSON to FILE.
+/// Builds without Google Benchmark (WALLAR_BUILD_BENCH=OFF: the asan, tsan and fuzz presets) keep
+/// the command, which then says so and fails.
+///
+/// Threading: the benchmarks run on the calling thread (one core).
+#if WALLAR_HAVE_BENCHMARK
+#include <benchmark/benchmark.h>
+#include <unistd.h>
+#endif
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "commands.hpp"
+#include "wallar/dsp/walls/plane_kernel.hpp"
+#include "wallar/dsp/walls/synthetic.hpp"
+#include "wallar/dsp/walls/wall_detector.hpp"
+
+namespace wallar::cli {
+namespace {
+
+struct BenchArgs {
+  std::string json;
+  std::vector<std::string> passthrough;
+};
+
+#if WALLAR_HAVE_BENCHMARK
+
+constexpr std::uint64_t kSeeds = 50;                    // scenes per detection benchmark
+constexpr double kSparseThreshold = 0.03;               // as tests/unit/test_walls.cpp
+const Eigen::Vector3d kGravity(0.0, 9.81, 0.0);         // the scenes' camera frame: y is down
+
+// ---- (a) the kernel -------------------------------------------------------------------------
+
+struct KernelCloud {
+  std::vector<float> x, y, z;
+  std::vector<Eigen::Vector4f> planes;  // (nx, ny, nz, d), cycled so no call is repeated
+};
+
+KernelCloud make_kernel_cloud(std::size_t n) {
+  KernelCloud c;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-3.0f, 3.0f);
+  c.x.resize(n);
+  c.y.resize(n);
+  c.z.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    c.x[i] = u(rng);
+    c.y[i] = u(rng);
+    c.z[i] = u(rng);
+  }
+  for (int i = 0; i < 64; ++i) {
+    const Eigen::Vector3f nrm = Eigen::Vector3f(u(rng), u(rng), u(rng)).normalized();
+    c.planes.emplace_back(nrm.x(), nrm.y(), nrm.z(), u(rng) / 3.0f);
+  }
+  return c;
+}
+
+template <bool kSimd>
+void bm_kernel(benchmark::State& state) {
+  const auto n = static_cast<std::size_t>(state.range(0));  // a multiple of kPointPadding
+  const KernelCloud c = make_kernel_cloud(n);
+  std::size_t k = 0;
+  std::uint64_t sink = 0;
+  for (auto _ : state) {
+    const Eigen::Vector4f& p = c.planes[k++ & 63u];
+    const dsp::PlaneCounts r =
+        kSimd ? dsp::score_plane(c.x.data(), c.y.data(), c.z.data(), n, p[0], p[1], p[2], p[3], 0.05f)
+              : dsp::score_plane_scalar(c.x.data(), c.y.data(), c.z.data(), n, p[0], p[1], p[2],
+                                        p[3], 0.05f);
+    sink += r.inliers + r.backliers;
+    benchmark::DoNotOptimize(sink);
+  }
+  const auto points = static_cast<double>(n);
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * static_cast<std::int64_t>(n));
+  // CPU time / (points * iterations), in ns: an inverted iteration-invariant rate of points.
+  state.counters["ns_per_point_test"] = benchmark::Counter(
+      points * 1e-9, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+  state.SetLabel(kSimd ? dsp::plane_kernel_target() : "scalar");
+}
+
+// ---- (b), (c) whole detections ----------------------------------------------------------------
+
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+bool is_wall(const dsp::Detection& d, const Plane& truth) {
+  return d.found && angle_deg(d.plane.n, truth.n) < 5.0 && std::abs(d.plane.d - truth.d) < 0.1;
+}
+
+const std::vector<dsp::LabelledCloud>& sparse_maps() {
+  static const std::vector<dsp::LabelledCloud> scenes = [] {
+    std::vector<dsp::LabelledCloud> s;
+    for (std::uint64_t seed = 1; seed <= kSeeds; ++seed) {
+      dsp::SparseMapParams p;  // 2000 points, 3.5 % wall, rho_b 0.1
+      p.seed = seed;
+      s.push_back(dsp::make_sparse_map(p));
+    }
+    return s;
+  }();
+  return scenes;
+}
+
+// One iteration = one detection (set_points, then detect: the neighbour grid is rebuilt each
+// time, as for a new map). Iteration i uses scene and detector seed i % kSeeds + 1; the
+// benchmark runs a multiple of kSeeds iterations, so every scene counts the same.
+void bm_detect(benchmark::State& state, bool two_d, dsp::Sampling sampling) {
+  const auto& scenes = sparse_maps();
+  std::vector<std::unique_ptr<dsp::WallDetector>> detectors;
+  for (std::uint64_t seed = 1; seed <= kSeeds; ++seed) {
+    dsp::DetectorConfig cfg;  // the default: BSF, guided, LO, 99 % confidence
+    cfg.threshold_m = kSparseThreshold;
+    cfg.sampling = sampling;
+    cfg.seed = seed;
+    detectors.push_back(std::make_unique<dsp::WallDetector>(scenes[seed - 1].cloud.size(), cfg));
+  }
+  std::uint64_t found = 0, rounds = 0, i = 0;
+  for (auto _ : state) {
+    const auto s = static_cast<std::size_t>(i++ % kSeeds);
+    dsp::WallDetector& det = *detectors[s];
+    dsp::Detection d;
+    if (two_d) {
+      det.set_points(scenes[s].cloud, kGravity);
+      d = det.detect_vertical();
+    } else {
+      det.set_points(scenes[s].cloud);
+      d = det.detect_3d();
+    }
+    benchmark::DoNotOptimize(d);
+    found += is_wall(d, scenes[s].wall) ? 1 : 0;
+    rounds += d.rounds;
+  }
+  const auto n = static_cast<double>(std::max<std::uint64_t>(i, 1));
+  state.counters["success_pct"] = 100.0 * static_cast<double>(found) / n;
+  state.counters["mean_rounds"] = static_cast<double>(rounds) / n;
+  state.counters["scenes"] = static_cast<double>(std::min<std::uint64_t>(i, kSeeds));
+}
+
+void register_wall_benchmarks() {
+  for (const std::int64_t n : {2048, 16384}) {
+    benchmark::RegisterBenchmark("walls/kernel/simd", bm_kernel<true>)->Arg(n);
+    benchmark::RegisterBenchmark("walls/kernel/scalar", bm_kernel<false>)->Arg(n);
+  }
+  struct Case {
+    const char* name;
+    bool two_d;
+    dsp::Sampling sampling;
+    std::int64_t iterations;
+  };
+  // Guided runs take about a millisecond and uniform 3-D ones tens: 4 rounds over the 50
+  // scenes, or one.
+  const Case cases[] = {{"walls/detect_3d/guided", false, dsp::Sampling::kGuided, 4 * kSeeds},
+                        {"walls/detect_2d/guided", true, dsp::Sampling::kGuided, 4 * kSeeds},
+                        {"walls/detect_3d/uniform", false, dsp::Sampling::kUniform, kSeeds},
+                        {"walls/detect_2d/uniform", true, dsp::Sampling::kUniform, 4 * kSeeds}};
+  for (const Case& c : cases) {
+    benchmark::RegisterBenchmark(c.name, [c](benchmark::State& st) { bm_detect(st, c.two_d, c.sampling); })
+        ->Iterations(c.iterations)
+        ->Unit(benchmark::kMicrosecond);
+  }
+}
+
+// The console shows ns_per_point_test in the label: as a counter it would be printed as if in
+// seconds. The JSON file (a separate reporter) keeps the counter as it is.
+class ConsoleWithNs final : public benchmark::ConsoleReporter {
+ public:
+  using ConsoleReporter::ConsoleReporter;
+  void ReportRuns(const std::vector<Run>& runs) override {
+    std::vector<Run> shown = runs;
+    for (Run& r : shown) {
+      const auto it = r.counters.find("ns_per_point_test");
+      if (it == r.counters.end()) continue;
+      char buf[64];
+      std::snprintf(buf, sizeof buf, " %.3f ns/point-test", static_cast<double>(it->second));
+      r.report_label += buf;
+      r.counters.erase(it);
+    }
+    ConsoleReporter::ReportRuns(shown);
+  }
+};
+
+int run_bench_walls(const BenchArgs& args) {
+  std::vector<std::string> flags{"wallar bench walls"};
+  if (!args.json.empty()) {
+    flags.push_back("--benchmark_out=" + args.json);
+    flags.push_back("--benchmark_out_format=json");
+  }
+  bool console = true;
+  for (const std::string& a : args.passthrough) {
+    flags.push_back(a);
+    if (a.rfind("--benchmark_format=", 0) == 0 && a != "--benchmark_format=console") console = false;
+  }
+  std::vector<char*> argv;
+  for (std::string& f : flags) argv.push_back(f.data());
+  argv.push_back(nullptr);
+  int argc = static_cast<int>(flags.size());
+  benchmark::Initialize(&argc, argv.data());
+  if (benchmark::ReportUnrecognizedArguments(argc, argv.data())) return kExitUsage;
+  benchmark::AddCustomContext("plane_kernel_target", dsp::plane_kernel_target());
+  register_wall_benchmarks();
+  ConsoleWithNs display(isatty(STDOUT_FILENO) ? benchmark::ConsoleReporter::OO_Color
+                                              : benchmark::ConsoleReporter::OO_None);
+  const std::size_t ran = benchmark::RunSpecifiedBenchmarks(console ? &display : nullptr);
+  benchmark::Shutdown();
+  if (ran == 0) {
+    std::fprintf(stderr, "wallar: error: no benchmark matched the filter\n");
+    return kExitUsage;
+  }
+  return kExitOk;
+}
+
+#else  // !WALLAR_HAVE_BENCHMARK
+
+int run_bench_walls(const BenchArgs& /*args*/) {
+  std::fprintf(stderr, "wallar: error: this build has no benchmarks (configured with "
+                       "WALLAR_BUILD_BENCH=OFF)\n");
+  return kExitFailure;
+}
+
+#endif  // WALLAR_HAVE_BENCHMARK
+
+}  // namespace
+
+void add_bench_command(CLI::App& app, std::function<int()>& run) {
+  CLI::App* bench = app.add_subcommand("bench", "Benchmarks of the hot paths (Google Benchmark)");
+  bench->require_subcommand(1);
+  auto args = std::make_shared<BenchArgs>();
+  CLI::App* walls = bench->add_subcommand(
+      "walls", "Wall detection: plane kernel (SIMD vs scalar), 3-D and 2-D detection on a sparse "
+               "map, guided vs uniform sampling");
+  walls->add_option("--json", args->json,
+                    "Also write the results as JSON to FILE (--benchmark_out=FILE "
+                    "--benchmark_out_format=json)")
+      ->option_text("FILE");
+  walls->add_option("benchmark_flags", args->passthrough,
+                    "Google Benchmark flags, after --, e.g. -- --benchmark_filter=kernel");
+  walls->callback([args, &run] { run = [args] { return run_bench_walls(*args); }; });
+}
+
+}  // namespace wallar::cli
