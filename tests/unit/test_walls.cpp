@@ -345,3 +345,27 @@ TEST(PclReference, PlaneOfSacPlaneTestPcd) {
 
 }  // namespace
 }  // namespace wallar::dsp
+
+namespace wallar::dsp {
+namespace {
+
+TEST(Determinism, SameSeedSameRoomDifferentSeedStillTheSameWalls) {
+  const auto scene = make_room_scene({});
+  RoomConfig cfg;
+  cfg.detector.threshold_m = 0.04;
+  cfg.gravity = Eigen::Vector3d(0.0, 9.81, 0.0);
+  RoomEstimator a(5000), b(5000);
+  const RoomResult ra = a.estimate(scene.cloud, cfg);
+  (void)b.estimate(make_thesis_scene({}).cloud, cfg);  // b has searched something else before
+  const RoomResult rb = b.estimate(scene.cloud, cfg);
+  ASSERT_EQ(ra.model.walls.size(), rb.model.walls.size());
+  for (std::size_t i = 0; i < ra.model.walls.size(); ++i) {
+    EXPECT_EQ(ra.model.walls[i].plane.n, rb.model.walls[i].plane.n);
+    EXPECT_EQ(ra.model.walls[i].plane.d, rb.model.walls[i].plane.d);
+    EXPECT_EQ(ra.model.walls[i].inliers, rb.model.walls[i].inliers);
+  }
+  EXPECT_EQ(ra.rounds, rb.rounds);
+}
+
+}  // namespace
+}  // namespace wallar::dsp

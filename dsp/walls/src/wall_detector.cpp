@@ -129,6 +129,9 @@ void WallDetector::set_points(const PointCloud& cloud, std::optional<Eigen::Vect
     viewpoints_.push_back((R_work_input_ * vp_input[i]).cast<float>());
   }
   const Eigen::Matrix3f R = R_work_input_.cast<float>();
+  // A new problem starts the random stream afresh: results depend on the seed and the input
+  // only, not on what the detector searched before.
+  rng_.seed(config_.seed);
   n_ = 0;
   skipped_ = 0;
   for (std::size_t i = 0; i < cloud.size(); ++i) {

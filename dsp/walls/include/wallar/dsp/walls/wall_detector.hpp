@@ -97,7 +97,8 @@ class WallDetector {
   /// Viewpoints (camera centres) in the input frame; at least one. Default: the origin.
   void set_viewpoints(std::span<const Eigen::Vector3d> viewpoints);
 
-  /// Loads the points to search (non-finite ones skipped and counted). With a gravity vector
+  /// Loads the points to search (non-finite ones skipped and counted) and re-seeds the random
+  /// generator from config().seed, so a search depends only on the seed and the input. With a gravity vector
   /// (pointing down, in the input frame), the cloud is rotated so that "up" is +z, and the 2-D
   /// and horizontal detectors become available. Throws std::length_error beyond max_points.
   void set_points(const PointCloud& cloud, std::optional<Eigen::Vector3d> gravity = std::nullopt);
