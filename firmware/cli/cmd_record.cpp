@@ -60,8 +60,8 @@ int run_record_command(const RecordArgs& args) {
   }
   recording::EurocWriter writer(args.out, rec.rig());
   RecorderSink sink(writer);
-  const source::ReplayStats stats = firmware::run_replay(rec, options, sink, stop_requested(),
-                                                         s_to_ns(args.duration_s));
+  const source::ReplayStats stats =
+      firmware::run_replay(rec, options, sink, stop_requested(), s_to_ns(args.duration_s));
   writer.close();
   const DurationNs tolerance = source::ReplaySource(rec, options).pair_tolerance_ns();
   if (args.json) {

@@ -27,8 +27,8 @@ class CountingSink final : public source::SensorSink {
   void on_imu(const ImuSample& /*sample*/) override {}
   void on_stereo(const StereoFrame& /*frame*/) override {}
   void on_unpaired(int cam, const CameraFrame& frame) override {
-    std::fprintf(stderr, "wallar: warning: cam%d frame %lld has no partner within tolerance\n",
-                 cam, static_cast<long long>(frame.t_ns));
+    std::fprintf(stderr, "wallar: warning: cam%d frame %lld has no partner within tolerance\n", cam,
+                 static_cast<long long>(frame.t_ns));
   }
 };
 

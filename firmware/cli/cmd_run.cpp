@@ -108,9 +108,11 @@ int run_run_command(const RunArgs& args) {
     nlohmann::json imu = {
         {"samples", est->samples},
         {"still", still},
-        {"mean_accel_m_s2", {est->mean_accel_m_s2.x(), est->mean_accel_m_s2.y(), est->mean_accel_m_s2.z()}},
+        {"mean_accel_m_s2",
+         {est->mean_accel_m_s2.x(), est->mean_accel_m_s2.y(), est->mean_accel_m_s2.z()}},
         {"gravity_norm_m_s2", est->mean_accel_m_s2.norm()},
-        {"gyro_bias_rad_s", {est->gyro_bias_rad_s.x(), est->gyro_bias_rad_s.y(), est->gyro_bias_rad_s.z()}},
+        {"gyro_bias_rad_s",
+         {est->gyro_bias_rad_s.x(), est->gyro_bias_rad_s.y(), est->gyro_bias_rad_s.z()}},
         {"accel_std_m_s2", est->accel_std_m_s2},
         {"gyro_std_rad_s", est->gyro_std_rad_s}};
     char buf[400];
@@ -127,14 +129,16 @@ int run_run_command(const RunArgs& args) {
           rec.ground_truth.begin(), rec.ground_truth.end(), [&](const auto& a, const auto& b) {
             return std::llabs(a.t_ns - sink.first.t_ns) < std::llabs(b.t_ns - sink.first.t_ns);
           });
-      const Eigen::Vector3d up_body = gt.T_world_body.linear().transpose() * Eigen::Vector3d::UnitZ();
+      const Eigen::Vector3d up_body =
+          gt.T_world_body.linear().transpose() * Eigen::Vector3d::UnitZ();
       const double gravity_err = angle_deg(est->mean_accel_m_s2, up_body);
       const double bias_err = (est->gyro_bias_rad_s - gt.gyro_bias_rad_s).norm();
       imu["gravity_error_vs_ground_truth_deg"] = gravity_err;
       imu["gyro_bias_error_vs_ground_truth_rad_s"] = bias_err;
-      std::snprintf(buf, sizeof buf,
-                    "ground truth: gravity direction off by %.3f deg, gyro bias off by %.5f rad/s\n",
-                    gravity_err, bias_err);
+      std::snprintf(
+          buf, sizeof buf,
+          "ground truth: gravity direction off by %.3f deg, gyro bias off by %.5f rad/s\n",
+          gravity_err, bias_err);
       text += buf;
     }
     summary["imu"] = imu;

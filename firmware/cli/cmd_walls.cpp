@@ -70,13 +70,14 @@ int run_walls_command(const WallsArgs& a) {
   const PointCloud cloud = cloud::read_cloud(a.input, &read_stats);
   if (read_stats.points_read < 3) {
     throw_input_error(a.input, 0,
-                      "needs at least 3 valid points, has " + std::to_string(read_stats.points_read) +
-                          " (" + std::to_string(read_stats.non_finite_skipped) +
-                          " non-finite skipped)");
+                      "needs at least 3 valid points, has " +
+                          std::to_string(read_stats.points_read) + " (" +
+                          std::to_string(read_stats.non_finite_skipped) + " non-finite skipped)");
   }
   dsp::RoomConfig cfg;
   cfg.detector.method = parse_method(a.method);
-  cfg.detector.sampling = a.sampling == "uniform" ? dsp::Sampling::kUniform : dsp::Sampling::kGuided;
+  cfg.detector.sampling =
+      a.sampling == "uniform" ? dsp::Sampling::kUniform : dsp::Sampling::kGuided;
   cfg.detector.beta = a.beta;
   cfg.detector.rho_b = a.rho;
   cfg.detector.threshold_m = a.threshold_m;
@@ -109,7 +110,8 @@ int run_walls_command(const WallsArgs& a) {
   nlohmann::json surfaces = nlohmann::json::array();
   std::ostringstream text;
   text << "wallar walls: " << result.points << " points";
-  if (read_stats.non_finite_skipped) text << " (" << read_stats.non_finite_skipped << " non-finite skipped)";
+  if (read_stats.non_finite_skipped)
+    text << " (" << read_stats.non_finite_skipped << " non-finite skipped)";
   text << ", " << (cfg.gravity ? "2-D (gravity-aligned)" : "3-D") << " " << a.method << ", "
        << result.rounds << " rounds, " << time_ms << " ms\n";
   for (const auto& s : result.surfaces) {
@@ -173,23 +175,33 @@ int run_walls_command(const WallsArgs& a) {
 void add_walls_command(CLI::App& app, std::function<int()>& run) {
   auto a = std::make_shared<WallsArgs>();
   CLI::App* cmd = app.add_subcommand("walls", "Find walls, floor and ceiling in a point cloud");
-  cmd->add_option("input", a->input, "Point cloud: .ply, .pcd or .csv (x,y,z)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--method", a->method, "Score: ransac, msac, bsf (BSF-RANSAC) or binomial (B-RANSAC)")
+  cmd->add_option("input", a->input, "Point cloud: .ply, .pcd or .csv (x,y,z)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--method", a->method,
+                  "Score: ransac, msac, bsf (BSF-RANSAC) or binomial (B-RANSAC)")
       ->check(CLI::IsMember({"ransac", "msac", "bsf", "binomial"}))
       ->capture_default_str();
   cmd->add_option("--sampling", a->sampling, "uniform or guided (neighbourhood) sampling")
       ->check(CLI::IsMember({"uniform", "guided"}))
       ->capture_default_str();
-  cmd->add_option("--beta", a->beta, "BSF backlier weight")->check(CLI::NonNegativeNumber)->capture_default_str();
-  cmd->add_option("--rho", a->rho, "B-RANSAC backlier probability (default: estimated from the data)")
+  cmd->add_option("--beta", a->beta, "BSF backlier weight")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--rho", a->rho,
+                  "B-RANSAC backlier probability (default: estimated from the data)")
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--threshold", a->threshold_m, "Inlier threshold [m]")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  cmd->add_option("--gravity", a->gravity, "Gravity gx,gy,gz in the cloud's frame: 2-D mode, floor and ceiling");
+  cmd->add_option("--gravity", a->gravity,
+                  "Gravity gx,gy,gz in the cloud's frame: 2-D mode, floor and ceiling");
   cmd->add_option("--viewpoint", a->viewpoints, "Camera centre x,y,z (repeatable; default origin)");
-  cmd->add_option("--view-dir", a->view_dir, "Viewing direction for the 3-D facing check")->capture_default_str();
-  cmd->add_option("--max-walls", a->max_walls, "Most surfaces to report")->check(CLI::Range(1, 64))->capture_default_str();
+  cmd->add_option("--view-dir", a->view_dir, "Viewing direction for the 3-D facing check")
+      ->capture_default_str();
+  cmd->add_option("--max-walls", a->max_walls, "Most surfaces to report")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
   cmd->add_option("--confidence", a->confidence, "Success probability for the rounds (eq. 2.7)")
       ->check(CLI::Range(0.5, 0.999999))
       ->capture_default_str();
@@ -197,7 +209,8 @@ void add_walls_command(CLI::App& app, std::function<int()>& run) {
       ->check(CLI::Range(1u, 100'000'000u))
       ->capture_default_str();
   cmd->add_option("--seed", a->seed, "Random seed")->capture_default_str();
-  cmd->add_flag("--manhattan", a->manhattan, "Walls parallel or perpendicular to the first (with --gravity)");
+  cmd->add_flag("--manhattan", a->manhattan,
+                "Walls parallel or perpendicular to the first (with --gravity)");
   cmd->add_option("--json", a->json, "Write the result as JSON to FILE, or - for stdout");
   cmd->add_option("--ply", a->ply, "Write the points coloured by surface as PLY");
   cmd->callback([a, &run] { run = [a] { return run_walls_command(*a); }; });

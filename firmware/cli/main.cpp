@@ -12,7 +12,8 @@ namespace wallar::cli {
 
 std::atomic<bool>& stop_requested() {
   static std::atomic<bool> flag{false};
-  static_assert(std::atomic<bool>::is_always_lock_free, "the signal handler needs a lock-free flag");
+  static_assert(std::atomic<bool>::is_always_lock_free,
+                "the signal handler needs a lock-free flag");
   return flag;
 }
 

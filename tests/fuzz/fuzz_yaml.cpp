@@ -63,8 +63,8 @@ void walk(const YamlNode& node, int depth) {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   expect_only_input_errors([&] {
-    const auto doc = wallar::config::YamlDocument::parse(wallar::fuzz::as_text(data, size),
-                                                         "fuzz.yaml");
+    const auto doc =
+        wallar::config::YamlDocument::parse(wallar::fuzz::as_text(data, size), "fuzz.yaml");
     if (doc.name() != "fuzz.yaml") __builtin_trap();
     walk(doc.root(), 0);
   });

@@ -229,7 +229,8 @@ std::string big_endian_ply(std::size_t vertices_written, bool nan_point) {
       "end_header\n";
   const bool be = true;
   // tag: kind 1 with 2 ids, kind 2 with none.
-  s += bin<std::uint8_t>(1) + bin<std::uint8_t>(2) + bin<std::int16_t>(-1, be) + bin<std::int16_t>(5, be);
+  s += bin<std::uint8_t>(1) + bin<std::uint8_t>(2) + bin<std::int16_t>(-1, be) +
+       bin<std::int16_t>(5, be);
   s += bin<std::uint8_t>(2) + bin<std::uint8_t>(0);
   for (int k = 0; k < 3; ++k) s += bin<std::int32_t>(k, be) + bin<double>(k * 0.5, be);
   std::vector<Pt> pts = kPts;
@@ -300,14 +301,16 @@ TEST(CloudPly, BadInput) {
   EXPECT_THAT(ply_error("ply\nformat ascii 1.0\nelement face 1\n"
                         "property list float int idx\nend_header\n"),
               HasSubstr("bad.ply:4: list length type 'float' is not an integer type"));
-  EXPECT_THAT(ply_error("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
-                        "property float y\nproperty float w\nend_header\n"),
-              HasSubstr("bad.ply: no 'z' vertex property (x, y and z are required; found: x, y, w)"));
+  EXPECT_THAT(
+      ply_error("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+                "property float y\nproperty float w\nend_header\n"),
+      HasSubstr("bad.ply: no 'z' vertex property (x, y and z are required; found: x, y, w)"));
   EXPECT_THAT(ply_error("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
                         "property float x\nend_header\n"),
               HasSubstr("duplicate vertex property 'x'"));
-  EXPECT_THAT(ply_error("ply\nformat ascii 1.0\nelement vertex 200000000\nend_header\n"),
-              HasSubstr("bad.ply:3: element vertex declares 200000000 points, more than the limit"));
+  EXPECT_THAT(
+      ply_error("ply\nformat ascii 1.0\nelement vertex 200000000\nend_header\n"),
+      HasSubstr("bad.ply:3: element vertex declares 200000000 points, more than the limit"));
   EXPECT_THAT(ply_error("ply\nformat ascii 1.0\nelement vertex 99999999999999999999999\n"),
               HasSubstr("bad.ply:3: bad element count '99999999999999999999999'"));
   EXPECT_THAT(ply_error("ply\nformat ascii 1.0\nelement vertex -1\n"),
@@ -323,18 +326,21 @@ TEST(CloudPly, BadInput) {
               HasSubstr("bad.ply:8: truncated: element vertex declares 2 points, found 1"));
   // Binary body: fewer bytes than the header says, in the vertex data and before it.
   std::string be = big_endian_ply(4, false);
-  EXPECT_THAT(ply_error(be.substr(0, be.size() - 1)),
-              HasSubstr("bad.ply: truncated: 4 vertices of 68 bytes need 272 bytes, only 271 follow"));
+  EXPECT_THAT(
+      ply_error(be.substr(0, be.size() - 1)),
+      HasSubstr("bad.ply: truncated: 4 vertices of 68 bytes need 272 bytes, only 271 follow"));
   const std::size_t body = be.find("end_header\n") + 11;
-  EXPECT_THAT(ply_error(be.substr(0, body + 3)),
-              HasSubstr("bad.ply: truncated: element 'tag' declares 2 entries, data ends in entry 0"));
+  EXPECT_THAT(
+      ply_error(be.substr(0, body + 3)),
+      HasSubstr("bad.ply: truncated: element 'tag' declares 2 entries, data ends in entry 0"));
   EXPECT_THAT(ply_error(be.substr(0, body + 8)),
               HasSubstr("bad.ply: truncated: element 'block' declares 3 entries"));
   // Optional columns must hold sane values on kept points.
   const std::string head =
       "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
       "property float z\nproperty float weight\nproperty float observations\nend_header\n";
-  EXPECT_THAT(ply_error(head + "1 2 3 inf 1\n"), HasSubstr("bad.ply:10: weight is not a finite float"));
+  EXPECT_THAT(ply_error(head + "1 2 3 inf 1\n"),
+              HasSubstr("bad.ply:10: weight is not a finite float"));
   EXPECT_THAT(ply_error(head + "1 2 3 1 -1\n"),
               HasSubstr("bad.ply:10: observation count must be a non-negative integer"));
   EXPECT_THAT(ply_error(head + "1 2 3 1 1.5\n"),
@@ -420,11 +426,11 @@ std::string pcd_compressed(int w, int h, Lzf* lzf_out = nullptr) {
   std::string raw;
   for (const std::string& c : cols) raw += c;
   Lzf lzf = lzf_compress(raw);
-  std::string s = "# made by test_cloud_io\nVERSION .7\nFIELDS x y z intensity _ obs\n"
-                  "SIZE 4 4 4 4 1 2\nTYPE F F F F U U\nCOUNT 1 1 1 1 3 1\nWIDTH " +
-                  std::to_string(w) + "\nHEIGHT " + std::to_string(h) +
-                  "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(n) +
-                  "\nDATA binary_compressed\n";
+  std::string s =
+      "# made by test_cloud_io\nVERSION .7\nFIELDS x y z intensity _ obs\n"
+      "SIZE 4 4 4 4 1 2\nTYPE F F F F U U\nCOUNT 1 1 1 1 3 1\nWIDTH " +
+      std::to_string(w) + "\nHEIGHT " + std::to_string(h) + "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " +
+      std::to_string(n) + "\nDATA binary_compressed\n";
   s += bin<std::uint32_t>(static_cast<std::uint32_t>(lzf.bytes.size())) +
        bin<std::uint32_t>(static_cast<std::uint32_t>(raw.size())) + lzf.bytes;
   if (lzf_out != nullptr) *lzf_out = lzf;
@@ -481,8 +487,10 @@ TEST(CloudPcd, BadInput) {
   EXPECT_THAT(pcd_error("VERSION 0.7\n"), HasSubstr("bad.pcd: truncated header: no DATA line"));
   EXPECT_THAT(pcd_error("VERSION 0.5\n"), HasSubstr("bad.pcd:1: unsupported PCD version '0.5'"));
   EXPECT_THAT(pcd_error("ply\n"), HasSubstr("bad.pcd:1: unknown PCD header line 'ply'"));
-  EXPECT_THAT(pcd_error(head3 + "DATA binary_lz4\n"), HasSubstr("bad.pcd:9: unknown DATA type 'binary_lz4'"));
-  EXPECT_THAT(pcd_error("VERSION 0.7\nDATA ascii\n"), HasSubstr("bad.pcd:2: header has no FIELDS line"));
+  EXPECT_THAT(pcd_error(head3 + "DATA binary_lz4\n"),
+              HasSubstr("bad.pcd:9: unknown DATA type 'binary_lz4'"));
+  EXPECT_THAT(pcd_error("VERSION 0.7\nDATA ascii\n"),
+              HasSubstr("bad.pcd:2: header has no FIELDS line"));
   EXPECT_THAT(pcd_error("FIELDS x y z\nSIZE 4 4\nTYPE F F F\nWIDTH 1\nDATA ascii\n"),
               HasSubstr("bad.pcd:2: SIZE has 2 entries, FIELDS has 3"));
   EXPECT_THAT(pcd_error("FIELDS x y z\nSIZE 4 4 4\nTYPE F F\nWIDTH 1\nDATA ascii\n"),
@@ -502,9 +510,11 @@ TEST(CloudPcd, BadInput) {
               HasSubstr("bad.pcd:4: field sizes overflow"));
   EXPECT_THAT(pcd_error("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nDATA ascii\n"),
               HasSubstr("bad.pcd:4: header has no WIDTH line"));
-  EXPECT_THAT(pcd_error("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 3\nHEIGHT 2\nPOINTS 5\nDATA ascii\n"),
-              HasSubstr("bad.pcd:6: POINTS 5 is not WIDTH x HEIGHT = 6"));
-  EXPECT_THAT(pcd_error("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 4294967296\nHEIGHT 4294967296\nDATA ascii\n"),
+  EXPECT_THAT(
+      pcd_error("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 3\nHEIGHT 2\nPOINTS 5\nDATA ascii\n"),
+      HasSubstr("bad.pcd:6: POINTS 5 is not WIDTH x HEIGHT = 6"));
+  EXPECT_THAT(pcd_error("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 4294967296\nHEIGHT "
+                        "4294967296\nDATA ascii\n"),
               HasSubstr("bad.pcd:6: WIDTH x HEIGHT overflows"));
   EXPECT_THAT(pcd_error("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 100000001\nDATA binary\n"),
               HasSubstr("bad.pcd:5: declares 100000001 points, more than the limit of 100000000"));
@@ -521,15 +531,16 @@ TEST(CloudPcd, BadInput) {
               HasSubstr("bad.pcd:11: bad number '3x' for field 'z'"));
   // Binary rows.
   const std::string b = pcd_binary(4);
-  EXPECT_THAT(pcd_error(b.substr(0, b.size() - 2)),
-              HasSubstr("bad.pcd: truncated: 4 points of 53 bytes need 212 bytes, only 210 follow"));
+  EXPECT_THAT(
+      pcd_error(b.substr(0, b.size() - 2)),
+      HasSubstr("bad.pcd: truncated: 4 points of 53 bytes need 212 bytes, only 210 follow"));
   EXPECT_THAT(pcd_error(pcd_binary(0)), HasSubstr("only 0 follow"));
   // No points: no data needed, in any encoding (size words optional when compressed).
   for (const char* data : {"ascii", "binary", "binary_compressed"}) {
-    EXPECT_TRUE(parse_pcd("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 0\nDATA " +
-                              std::string(data) + "\n",
-                          "none.pcd")
-                    .empty());
+    EXPECT_TRUE(
+        parse_pcd("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 0\nDATA " + std::string(data) + "\n",
+                  "none.pcd")
+            .empty());
   }
 }
 
@@ -542,16 +553,21 @@ TEST(CloudPcd, BadCompressedData) {
   const auto with = [&](std::uint32_t csize, std::uint32_t usize, const std::string& data) {
     return head + bin(csize) + bin(usize) + data;
   };
-  EXPECT_THAT(pcd_error(head + "abc"), HasSubstr("bad.pcd: truncated: binary_compressed data has no size words"));
-  EXPECT_THAT(pcd_error(with(static_cast<std::uint32_t>(lzf.size() + 1), raw, lzf)),
-              HasSubstr("truncated: " + std::to_string(lzf.size() + 1) + " compressed bytes declared"));
-  EXPECT_THAT(pcd_error(with(static_cast<std::uint32_t>(lzf.size()), raw + 4, lzf)),
-              HasSubstr("bad.pcd: binary_compressed: uncompressed size 172 is not POINTS x row size = 168"));
+  EXPECT_THAT(pcd_error(head + "abc"),
+              HasSubstr("bad.pcd: truncated: binary_compressed data has no size words"));
+  EXPECT_THAT(
+      pcd_error(with(static_cast<std::uint32_t>(lzf.size() + 1), raw, lzf)),
+      HasSubstr("truncated: " + std::to_string(lzf.size() + 1) + " compressed bytes declared"));
+  EXPECT_THAT(
+      pcd_error(with(static_cast<std::uint32_t>(lzf.size()), raw + 4, lzf)),
+      HasSubstr(
+          "bad.pcd: binary_compressed: uncompressed size 172 is not POINTS x row size = 168"));
   // Corrupt streams: cut short, a back-reference before the start, an impossible ratio.
   EXPECT_THAT(pcd_error(with(static_cast<std::uint32_t>(lzf.size() - 1), raw, lzf)),
               HasSubstr("bad.pcd: corrupt LZF data:"));
   EXPECT_THAT(pcd_error(with(2, raw, std::string("\x20\x00", 2))), HasSubstr("corrupt LZF data:"));
-  EXPECT_THAT(pcd_error(with(1, raw, "\x1f")), HasSubstr("corrupt LZF data: declared size 168 is impossible"));
+  EXPECT_THAT(pcd_error(with(1, raw, "\x1f")),
+              HasSubstr("corrupt LZF data: declared size 168 is impossible"));
   // A flipped byte anywhere in the stream: still decodes, or a clean error.
   for (std::size_t i = 0; i < lzf.size(); ++i) {
     std::string bad = lzf;
@@ -567,21 +583,58 @@ TEST(CloudPcd, BadCompressedData) {
 TEST(CloudLzf, HandCraftedStreamsAndCorruption) {
   const std::string n = "lzf";
   // "abc" literal, then 6 bytes from 3 back: "abcabcabc".
-  EXPECT_EQ(cloud::lzf_decompress(std::string("\x02" "abc" "\x80\x02", 6), 9, n), "abcabcabc");
+  EXPECT_EQ(cloud::lzf_decompress(std::string("\x02"
+                                              "abc"
+                                              "\x80\x02",
+                                              6),
+                                  9, n),
+            "abcabcabc");
   // "a" then a long back-reference 1 back of 7 + 3 + 2 = 12 bytes (overlapping run).
-  EXPECT_EQ(cloud::lzf_decompress(std::string("\x00" "a" "\xe0\x03\x00", 5), 13, n),
+  EXPECT_EQ(cloud::lzf_decompress(std::string("\x00"
+                                              "a"
+                                              "\xe0\x03\x00",
+                                              5),
+                                  13, n),
             std::string(13, 'a'));
   EXPECT_THAT(error_of([&] { (void)cloud::lzf_decompress(std::string("\x20\x00", 2), 3, n); }),
               HasSubstr("lzf: corrupt LZF data: back-reference to 1 bytes back at output byte 0"));
-  EXPECT_THAT(error_of([&] { (void)cloud::lzf_decompress("\x05" "a", 6, n); }),
+  EXPECT_THAT(error_of([&] {
+                (void)cloud::lzf_decompress(
+                    "\x05"
+                    "a",
+                    6, n);
+              }),
               HasSubstr("literal run past the end of the input"));
-  EXPECT_THAT(error_of([&] { (void)cloud::lzf_decompress("\x02" "abc", 2, n); }),
+  EXPECT_THAT(error_of([&] {
+                (void)cloud::lzf_decompress(
+                    "\x02"
+                    "abc",
+                    2, n);
+              }),
               HasSubstr("output longer than the declared 2 bytes"));
-  EXPECT_THAT(error_of([&] { (void)cloud::lzf_decompress(std::string("\x02" "abc" "\x80\x02", 6), 12, n); }),
+  EXPECT_THAT(error_of([&] {
+                (void)cloud::lzf_decompress(std::string("\x02"
+                                                        "abc"
+                                                        "\x80\x02",
+                                                        6),
+                                            12, n);
+              }),
               HasSubstr("decompresses to 9 bytes, the header says 12"));
-  EXPECT_THAT(error_of([&] { (void)cloud::lzf_decompress(std::string("\x00" "a" "\x20", 3), 4, n); }),
+  EXPECT_THAT(error_of([&] {
+                (void)cloud::lzf_decompress(std::string("\x00"
+                                                        "a"
+                                                        "\x20",
+                                                        3),
+                                            4, n);
+              }),
               HasSubstr("back-reference cut off"));
-  EXPECT_THAT(error_of([&] { (void)cloud::lzf_decompress(std::string("\x00" "a" "\xe0", 3), 12, n); }),
+  EXPECT_THAT(error_of([&] {
+                (void)cloud::lzf_decompress(std::string("\x00"
+                                                        "a"
+                                                        "\xe0",
+                                                        3),
+                                            12, n);
+              }),
               HasSubstr("back-reference cut off"));
   EXPECT_THAT(error_of([&] { (void)cloud::lzf_decompress("ab", 177, n); }),
               HasSubstr("declared size 177 is impossible for 2 compressed bytes"));
@@ -627,15 +680,20 @@ TEST(CloudCsv, WhitespaceXyzWithoutHeaderAndCloudCompareHeader) {
 
 TEST(CloudCsv, BadInput) {
   EXPECT_THAT(csv_error(""), HasSubstr("bad.csv: empty file"));
-  EXPECT_THAT(csv_error("# nothing\n\n"), HasSubstr("bad.csv: no data (only blank or comment lines)"));
-  EXPECT_THAT(csv_error("1,2\n"), HasSubstr("bad.csv:1: expected at least 3 columns (x, y, z), found 2"));
+  EXPECT_THAT(csv_error("# nothing\n\n"),
+              HasSubstr("bad.csv: no data (only blank or comment lines)"));
+  EXPECT_THAT(csv_error("1,2\n"),
+              HasSubstr("bad.csv:1: expected at least 3 columns (x, y, z), found 2"));
   EXPECT_THAT(csv_error("1,2,3\n4,5\n"), HasSubstr("bad.csv:2: expected 3 fields, found 2"));
   EXPECT_THAT(csv_error("1 2 3\n4 5 6 7\n"), HasSubstr("bad.csv:2: expected 3 fields, found 4"));
-  EXPECT_THAT(csv_error("1,2,3\n# c\n4,5,6e\n"), HasSubstr("bad.csv:3: bad number '6e' in column 3 (z)"));
+  EXPECT_THAT(csv_error("1,2,3\n# c\n4,5,6e\n"),
+              HasSubstr("bad.csv:3: bad number '6e' in column 3 (z)"));
   EXPECT_THAT(csv_error("a,b,c\n1,2,3\n"),
               HasSubstr("bad.csv:1: no 'x' column (x, y and z are required; found: a, b, c)"));
-  EXPECT_THAT(csv_error("x,y,z,w\n1,2,,4\n"), HasSubstr("bad.csv:2: bad number '' in column 3 ('z')"));
-  EXPECT_THAT(csv_error("x,y,z,weight\n1,2,3,nan\n"), HasSubstr("bad.csv:2: weight is not a finite float"));
+  EXPECT_THAT(csv_error("x,y,z,w\n1,2,,4\n"),
+              HasSubstr("bad.csv:2: bad number '' in column 3 ('z')"));
+  EXPECT_THAT(csv_error("x,y,z,weight\n1,2,3,nan\n"),
+              HasSubstr("bad.csv:2: weight is not a finite float"));
   EXPECT_THAT(csv_error(std::string("1,2,3\n4,5,\0", 11)), HasSubstr("bad.csv:2: bad number"));
 }
 
@@ -649,8 +707,10 @@ TEST(CloudRead, DispatchesByExtensionAndNamesTheFile) {
   EXPECT_EQ(read_cloud(tmp.path() / "a.PLY").size(), 2u);
   EXPECT_EQ(read_cloud(tmp.path() / "b.pcd").size(), 4u);
   spit(tmp.path() / "c.obj", "v 1 2 3\n");
-  EXPECT_THAT(error_of([&] { (void)read_cloud(tmp.path() / "c.obj"); }),
-              HasSubstr("c.obj: unknown point cloud extension '.obj' (want .ply, .pcd, .csv, .txt or .xyz)"));
+  EXPECT_THAT(
+      error_of([&] { (void)read_cloud(tmp.path() / "c.obj"); }),
+      HasSubstr(
+          "c.obj: unknown point cloud extension '.obj' (want .ply, .pcd, .csv, .txt or .xyz)"));
   EXPECT_THAT(error_of([&] { (void)read_cloud(tmp.path() / "missing.ply"); }),
               HasSubstr("missing.ply: no such file"));
   spit(tmp.path() / "empty.pcd", "");
@@ -665,9 +725,9 @@ TEST(CloudRead, DispatchesByExtensionAndNamesTheFile) {
 /// Every prefix and many random byte changes of valid files, through every parser: the only
 /// outcomes allowed are a cloud or an InputError (ASan/UBSan builds check the memory side).
 TEST(CloudRead, TruncatedAndMutatedInputOnlyEverGivesInputError) {
-  const std::vector<std::string> seeds = {
-      big_endian_ply(5, true), pcd_binary(4), pcd_compressed(6, 2),
-      kPlyAsciiHead + "1 2 3\n4 5 6\n", "x,y,z,obs\n1,2,3,4\n"};
+  const std::vector<std::string> seeds = {big_endian_ply(5, true), pcd_binary(4),
+                                          pcd_compressed(6, 2), kPlyAsciiHead + "1 2 3\n4 5 6\n",
+                                          "x,y,z,obs\n1,2,3,4\n"};
   std::mt19937 rng(1234);
   std::size_t runs = 0;
   const auto run = [&](const std::string& bytes) {

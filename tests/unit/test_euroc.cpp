@@ -82,7 +82,8 @@ TEST(EurocWriter, WritesWhatTheReaderReadsBack) {
   EXPECT_EQ(img.width(), 8);
   // No temporary files left behind.
   for (const auto& e : fs::recursive_directory_iterator(tmp.path())) {
-    EXPECT_EQ(e.path().extension(), e.path().extension() == ".part" ? ".none" : e.path().extension());
+    EXPECT_EQ(e.path().extension(),
+              e.path().extension() == ".part" ? ".none" : e.path().extension());
   }
 }
 
@@ -141,7 +142,8 @@ TEST_F(EurocBadInput, LongCsvRow) {
 
 TEST_F(EurocBadInput, NonNumericField) {
   replace_line(mav0() / "imu0" / "data.csv", 3, "1005000000,0.1,abc,0.3,0,0,9.8");
-  EXPECT_THAT(error(), HasSubstr("imu0/data.csv:3: w_y (column 3) must be a finite number, got 'abc'"));
+  EXPECT_THAT(error(),
+              HasSubstr("imu0/data.csv:3: w_y (column 3) must be a finite number, got 'abc'"));
 }
 
 TEST_F(EurocBadInput, NonNumericTimestamp) {
@@ -156,7 +158,8 @@ TEST_F(EurocBadInput, NonFiniteNumber) {
 
 TEST_F(EurocBadInput, NonMonotonicTimestamps) {
   replace_line(mav0() / "imu0" / "data.csv", 5, "1001000000,0,0,0,0,0,9.8");
-  EXPECT_THAT(error(), HasSubstr("imu0/data.csv:5: timestamp 1001000000 goes back from 1010000000"));
+  EXPECT_THAT(error(),
+              HasSubstr("imu0/data.csv:5: timestamp 1001000000 goes back from 1010000000"));
 }
 
 TEST_F(EurocBadInput, DuplicateTimestamps) {
@@ -173,8 +176,7 @@ TEST_F(EurocBadInput, LeftFrameWithoutItsRight) {
   // Drop the third right frame: the reader accepts it, the strict pairing check names it.
   replace_line(mav0() / "cam1" / "data.csv", 4, "");
   const EurocRecording rec = read_euroc(tmp_.path());
-  const std::string e =
-      input_error_of([&] { recording::check_stereo_pairs(rec, 25 * kNsPerMs); });
+  const std::string e = input_error_of([&] { recording::check_stereo_pairs(rec, 25 * kNsPerMs); });
   EXPECT_THAT(e, HasSubstr("cam0/data.csv:4: left frame 1100000000 has no right frame within "
                            "25.000 ms"));
 }
@@ -182,9 +184,8 @@ TEST_F(EurocBadInput, LeftFrameWithoutItsRight) {
 TEST_F(EurocBadInput, UnreadablePng) {
   spit(mav0() / "cam0" / "data" / "1050000000.png", "this is not a PNG");
   const EurocRecording rec = read_euroc(tmp_.path());
-  const std::string e = input_error_of([&] {
-    (void)recording::load_png_gray(rec.cams[0].image_path(rec.cams[0].frames[1]), 8, 6);
-  });
+  const std::string e = input_error_of(
+      [&] { (void)recording::load_png_gray(rec.cams[0].image_path(rec.cams[0].frames[1]), 8, 6); });
   EXPECT_THAT(e, HasSubstr("cam0/data/1050000000.png: unreadable PNG"));
 }
 
@@ -250,8 +251,9 @@ TEST(CsvParser, SkipsCommentsBlankLinesAndCarriageReturns) {
 }
 
 TEST(CsvParser, RejectsPathsInFileNames) {
-  EXPECT_THAT(input_error_of([] { (void)recording::parse_camera_csv("1,../etc/passwd\n", "c.csv"); }),
-              HasSubstr("c.csv:1: filename must be a plain file name"));
+  EXPECT_THAT(
+      input_error_of([] { (void)recording::parse_camera_csv("1,../etc/passwd\n", "c.csv"); }),
+      HasSubstr("c.csv:1: filename must be a plain file name"));
 }
 
 }  // namespace

@@ -197,7 +197,8 @@ TEST(RecordReplay, RoundTripsTheBundledRecordingExactly) {
       const Image ia = recording::load_png_gray(a.image_path(a.frames[i]));
       const Image ib = recording::load_png_gray(b.image_path(b.frames[i]));
       ASSERT_EQ(ia.width() * ia.height(), ib.width() * ib.height());
-      EXPECT_EQ(0, std::memcmp(ia.data(), ib.data(), static_cast<std::size_t>(ia.width()) * ia.height()))
+      EXPECT_EQ(
+          0, std::memcmp(ia.data(), ib.data(), static_cast<std::size_t>(ia.width()) * ia.height()))
           << "frame " << i << " of cam" << c;
     }
   }

@@ -44,8 +44,7 @@ TEST(StaticImu, MatchesGroundTruthOnTheRealRecording) {
   EXPECT_TRUE(dsp::is_still(*est));
   const auto& gt = rec.ground_truth.front();
   const Eigen::Vector3d up_body = gt.T_world_body.linear().transpose() * Eigen::Vector3d::UnitZ();
-  const double angle_deg =
-      std::acos(est->mean_accel_m_s2.normalized().dot(up_body)) * 180.0 / M_PI;
+  const double angle_deg = std::acos(est->mean_accel_m_s2.normalized().dot(up_body)) * 180.0 / M_PI;
   EXPECT_LT(angle_deg, 1.0);  // the data README reports 0.6 degrees over all 95 frames
   EXPECT_LT((est->gyro_bias_rad_s - gt.gyro_bias_rad_s).norm(), 0.003);
   EXPECT_NEAR(est->mean_accel_m_s2.norm(), 9.81, 0.1);

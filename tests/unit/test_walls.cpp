@@ -37,8 +37,10 @@ TEST(PlaneKernel, SimdMatchesScalarOnRandomClouds) {
       z[i] = u(rng);
     }
     const Eigen::Vector3f nrm = Eigen::Vector3f(0.3f, -0.5f, 0.8f).normalized();
-    const PlaneCounts a = score_plane(x.data(), y.data(), z.data(), n, nrm.x(), nrm.y(), nrm.z(), 0.4f, 0.2f);
-    const PlaneCounts b = score_plane_scalar(x.data(), y.data(), z.data(), n, nrm.x(), nrm.y(), nrm.z(), 0.4f, 0.2f);
+    const PlaneCounts a =
+        score_plane(x.data(), y.data(), z.data(), n, nrm.x(), nrm.y(), nrm.z(), 0.4f, 0.2f);
+    const PlaneCounts b =
+        score_plane_scalar(x.data(), y.data(), z.data(), n, nrm.x(), nrm.y(), nrm.z(), 0.4f, 0.2f);
     EXPECT_EQ(a.inliers, b.inliers) << n << " points, target " << plane_kernel_target();
     EXPECT_EQ(a.backliers, b.backliers);
     EXPECT_NEAR(a.inlier_sq_sum, b.inlier_sq_sum, 1e-4f * b.inlier_sq_sum + 1e-6f);
@@ -80,10 +82,14 @@ TEST(Scores, RoundsFollowEq27) {
 TEST(Scores, EachScoreOnAHandBuiltCloud) {
   // A wall at z = 2 with 40 points and 30 behind it; a table at z = 1 with 60 points.
   PointCloud cloud;
-  for (int i = 0; i < 40; ++i) cloud.push_back({-1.0f + 0.05f * i, static_cast<float>(i % 7) * 0.2f - 0.6f, 2.0f});
+  for (int i = 0; i < 40; ++i)
+    cloud.push_back({-1.0f + 0.05f * i, static_cast<float>(i % 7) * 0.2f - 0.6f, 2.0f});
   // Backliers scattered in depth (they must not form a plane of their own).
-  for (int i = 0; i < 30; ++i) cloud.push_back({-1.0f + 0.06f * i, static_cast<float>(i % 5) * 0.2f - 0.4f, 2.2f + 0.029f * static_cast<float>((i * 7) % 30)});
-  for (int i = 0; i < 60; ++i) cloud.push_back({-0.5f + 0.015f * i, static_cast<float>(i % 9) * 0.1f - 0.4f, 1.0f});
+  for (int i = 0; i < 30; ++i)
+    cloud.push_back({-1.0f + 0.06f * i, static_cast<float>(i % 5) * 0.2f - 0.4f,
+                     2.2f + 0.029f * static_cast<float>((i * 7) % 30)});
+  for (int i = 0; i < 60; ++i)
+    cloud.push_back({-0.5f + 0.015f * i, static_cast<float>(i % 9) * 0.1f - 0.4f, 1.0f});
   DetectorConfig cfg;
   cfg.threshold_m = 0.02;
   cfg.sampling = Sampling::kUniform;
@@ -265,7 +271,7 @@ TEST(Room, FourWallsFloorAndCeilingWithKindsExtentsAndStableIds) {
     area = 0.5 * area;
     EXPECT_GT(area, 0.0) << "counter-clockwise";
     const double height = p.floor_below_m + p.ceiling_above_m;
-    const double expected = w.kind != SurfaceKind::kWall ? p.width_m * p.depth_m
+    const double expected = w.kind != SurfaceKind::kWall    ? p.width_m * p.depth_m
                             : std::abs(w.plane.n.x()) > 0.9 ? p.depth_m * height
                                                             : p.width_m * height;
     EXPECT_NEAR(area, expected, 0.2 * expected) << "id " << w.id;

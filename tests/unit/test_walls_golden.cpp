@@ -5,10 +5,10 @@
 /// including NEON under qemu-aarch64. Set WALLAR_UPDATE_GOLDEN=1 to rewrite the file after an
 /// intended change (and say why in the commit).
 #include <gtest/gtest.h>
+#include <hwy/targets.h>
 
 #include <cstdlib>
 #include <fstream>
-#include <hwy/targets.h>
 #include <nlohmann/json.hpp>
 
 #include "wallar/dsp/walls/plane_kernel.hpp"

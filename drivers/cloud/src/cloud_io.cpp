@@ -67,8 +67,8 @@ void split_comma(std::string_view s, std::vector<std::string_view>& out) {
   std::size_t start = 0;
   for (;;) {
     const std::size_t comma = s.find(',', start);
-    out.push_back(trim(s.substr(start, comma == std::string_view::npos ? std::string_view::npos
-                                                                        : comma - start)));
+    out.push_back(trim(
+        s.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start)));
     if (comma == std::string_view::npos) break;
     start = comma + 1;
   }
@@ -92,8 +92,7 @@ bool parse_u64(std::string_view s, std::uint64_t& out) {
 /// the last line returned (where binary data following a header starts).
 class Lines {
  public:
-  explicit Lines(std::string_view text, int first_line = 1)
-      : text_(text), line_(first_line - 1) {}
+  explicit Lines(std::string_view text, int first_line = 1) : text_(text), line_(first_line - 1) {}
   bool next(std::string_view& out) {
     if (pos_ >= text_.size()) return false;
     std::size_t eol = text_.find('\n', pos_);
@@ -144,15 +143,19 @@ enum class Scalar : std::uint8_t { kI8, kU8, kI16, kU16, kI32, kU32, kI64, kU64,
 std::size_t scalar_size(Scalar t) {
   switch (t) {
     case Scalar::kI8:
-    case Scalar::kU8: return 1;
+    case Scalar::kU8:
+      return 1;
     case Scalar::kI16:
-    case Scalar::kU16: return 2;
+    case Scalar::kU16:
+      return 2;
     case Scalar::kI32:
     case Scalar::kU32:
-    case Scalar::kF32: return 4;
+    case Scalar::kF32:
+      return 4;
     case Scalar::kI64:
     case Scalar::kU64:
-    case Scalar::kF64: return 8;
+    case Scalar::kF64:
+      return 8;
   }
   return 1;
 }
@@ -175,17 +178,26 @@ U load_bits(const char* p, bool swap) {
 double load_scalar(const char* p, Scalar t, bool big_endian_data) {
   const bool swap = big_endian_data != (std::endian::native == std::endian::big);
   switch (t) {
-    case Scalar::kI8: return static_cast<std::int8_t>(static_cast<unsigned char>(*p));
-    case Scalar::kU8: return static_cast<unsigned char>(*p);
-    case Scalar::kI16: return std::bit_cast<std::int16_t>(load_bits<std::uint16_t>(p, swap));
-    case Scalar::kU16: return load_bits<std::uint16_t>(p, swap);
-    case Scalar::kI32: return std::bit_cast<std::int32_t>(load_bits<std::uint32_t>(p, swap));
-    case Scalar::kU32: return load_bits<std::uint32_t>(p, swap);
+    case Scalar::kI8:
+      return static_cast<std::int8_t>(static_cast<unsigned char>(*p));
+    case Scalar::kU8:
+      return static_cast<unsigned char>(*p);
+    case Scalar::kI16:
+      return std::bit_cast<std::int16_t>(load_bits<std::uint16_t>(p, swap));
+    case Scalar::kU16:
+      return load_bits<std::uint16_t>(p, swap);
+    case Scalar::kI32:
+      return std::bit_cast<std::int32_t>(load_bits<std::uint32_t>(p, swap));
+    case Scalar::kU32:
+      return load_bits<std::uint32_t>(p, swap);
     case Scalar::kI64:
       return static_cast<double>(std::bit_cast<std::int64_t>(load_bits<std::uint64_t>(p, swap)));
-    case Scalar::kU64: return static_cast<double>(load_bits<std::uint64_t>(p, swap));
-    case Scalar::kF32: return std::bit_cast<float>(load_bits<std::uint32_t>(p, swap));
-    case Scalar::kF64: return std::bit_cast<double>(load_bits<std::uint64_t>(p, swap));
+    case Scalar::kU64:
+      return static_cast<double>(load_bits<std::uint64_t>(p, swap));
+    case Scalar::kF32:
+      return std::bit_cast<float>(load_bits<std::uint32_t>(p, swap));
+    case Scalar::kF64:
+      return std::bit_cast<double>(load_bits<std::uint64_t>(p, swap));
   }
   return 0.0;
 }
@@ -271,7 +283,8 @@ class CloudBuilder {
     std::uint16_t obs = 0;
     if (has_weight_) {
       const double d = v[kWeight];
-      if (!std::isfinite(d) || std::abs(d) > kFloatMax) fail(line, index, "weight is not a finite float");
+      if (!std::isfinite(d) || std::abs(d) > kFloatMax)
+        fail(line, index, "weight is not a finite float");
       w = static_cast<float>(d);
     }
     if (has_obs_) {
@@ -418,7 +431,8 @@ PointCloud parse_ply(std::string_view bytes, const std::string& name, CloudReadS
       break;
     }
     if (kw == "format") {
-      if (tok.size() != 3) throw_input_error(name, ln, "malformed format line (want 'format TYPE 1.0')");
+      if (tok.size() != 3)
+        throw_input_error(name, ln, "malformed format line (want 'format TYPE 1.0')");
       if (format != PlyFormat::kNone) throw_input_error(name, ln, "second format line");
       if (tok[1] == "ascii") {
         format = PlyFormat::kAscii;
@@ -427,14 +441,17 @@ PointCloud parse_ply(std::string_view bytes, const std::string& name, CloudReadS
       } else if (tok[1] == "binary_big_endian") {
         format = PlyFormat::kBinaryBe;
       } else {
-        throw_input_error(name, ln, "unknown PLY format '" + printable(tok[1]) +
-                                        "' (want ascii, binary_little_endian or binary_big_endian)");
+        throw_input_error(name, ln,
+                          "unknown PLY format '" + printable(tok[1]) +
+                              "' (want ascii, binary_little_endian or binary_big_endian)");
       }
       if (tok[2] != "1.0") {
-        throw_input_error(name, ln, "unsupported PLY version '" + printable(tok[2]) + "' (only 1.0)");
+        throw_input_error(name, ln,
+                          "unsupported PLY version '" + printable(tok[2]) + "' (only 1.0)");
       }
     } else if (kw == "element") {
-      if (tok.size() != 3) throw_input_error(name, ln, "malformed element line (want 'element NAME COUNT')");
+      if (tok.size() != 3)
+        throw_input_error(name, ln, "malformed element line (want 'element NAME COUNT')");
       PlyElement e;
       e.name = std::string(tok[1]);
       if (!parse_u64(tok[2], e.count)) {
@@ -445,9 +462,10 @@ PointCloud parse_ply(std::string_view bytes, const std::string& name, CloudReadS
           if (prev.name == "vertex") throw_input_error(name, ln, "second 'vertex' element");
         }
         if (e.count > kMaxCloudPoints) {
-          throw_input_error(name, ln, "element vertex declares " + std::to_string(e.count) +
-                                          " points, more than the limit of " +
-                                          std::to_string(kMaxCloudPoints));
+          throw_input_error(name, ln,
+                            "element vertex declares " + std::to_string(e.count) +
+                                " points, more than the limit of " +
+                                std::to_string(kMaxCloudPoints));
         }
       }
       elements.push_back(std::move(e));
@@ -459,18 +477,21 @@ PointCloud parse_ply(std::string_view bytes, const std::string& name, CloudReadS
         const auto ct = ply_type(tok[2]);
         const auto it = ply_type(tok[3]);
         if (!ct || !it) {
-          throw_input_error(name, ln, "unknown property type '" + printable(ct ? tok[3] : tok[2]) + "'");
+          throw_input_error(name, ln,
+                            "unknown property type '" + printable(ct ? tok[3] : tok[2]) + "'");
         }
         if (!is_integer(*ct)) {
-          throw_input_error(name, ln, "list length type '" + printable(tok[2]) + "' is not an integer type");
+          throw_input_error(name, ln,
+                            "list length type '" + printable(tok[2]) + "' is not an integer type");
         }
         p.is_list = true;
         p.count_type = *ct;
         p.type = *it;
         p.name = std::string(tok[4]);
         if (e.name == "vertex") {
-          throw_input_error(name, ln, "list property '" + printable(p.name) +
-                                          "' in element vertex is not supported");
+          throw_input_error(
+              name, ln,
+              "list property '" + printable(p.name) + "' in element vertex is not supported");
         }
       } else if (tok.size() == 3 && tok[1] != "list") {
         const auto t = ply_type(tok[1]);
@@ -478,8 +499,9 @@ PointCloud parse_ply(std::string_view bytes, const std::string& name, CloudReadS
         p.type = *t;
         p.name = std::string(tok[2]);
       } else {
-        throw_input_error(name, ln, "malformed property line (want 'property TYPE NAME' or "
-                                    "'property list COUNT_TYPE ITEM_TYPE NAME')");
+        throw_input_error(name, ln,
+                          "malformed property line (want 'property TYPE NAME' or "
+                          "'property list COUNT_TYPE ITEM_TYPE NAME')");
       }
       e.props.push_back(std::move(p));
     } else {
@@ -535,7 +557,8 @@ PointCloud parse_ply(std::string_view bytes, const std::string& name, CloudReadS
                                 printable(vertex.props[c].name) + "'");
         }
         for (int r = 0; r < kRoleCount; ++r) {
-          if (cols[static_cast<std::size_t>(r)] == static_cast<int>(c)) v[static_cast<std::size_t>(r)] = d;
+          if (cols[static_cast<std::size_t>(r)] == static_cast<int>(c))
+            v[static_cast<std::size_t>(r)] = d;
         }
       }
       out.add(v, data.line(), static_cast<std::size_t>(i));
@@ -597,8 +620,10 @@ std::string lzf_decompress(std::string_view in, std::size_t out_size, const std:
     const unsigned ctrl = ip[i++];
     if (ctrl < 32) {  // literal run of ctrl + 1 bytes
       const std::size_t len = ctrl + 1;
-      if (len > in_size - i) fail("literal run past the end of the input at byte " + std::to_string(i - 1));
-      if (len > out_size - o) fail("output longer than the declared " + std::to_string(out_size) + " bytes");
+      if (len > in_size - i)
+        fail("literal run past the end of the input at byte " + std::to_string(i - 1));
+      if (len > out_size - o)
+        fail("output longer than the declared " + std::to_string(out_size) + " bytes");
       std::memcpy(out.data() + o, ip + i, len);
       i += len;
       o += len;
@@ -616,7 +641,8 @@ std::string lzf_decompress(std::string_view in, std::size_t out_size, const std:
            std::to_string(o));
     }
     len += 2;
-    if (len > out_size - o) fail("output longer than the declared " + std::to_string(out_size) + " bytes");
+    if (len > out_size - o)
+      fail("output longer than the declared " + std::to_string(out_size) + " bytes");
     for (std::size_t k = 0; k < len; ++k, ++o) out[o] = out[o - back];  // may overlap
   }
   if (o != out_size) {
@@ -693,7 +719,8 @@ PointCloud parse_pcd(std::string_view bytes, const std::string& name, CloudReadS
     for (std::size_t i = 1; i < tok.size(); ++i) {
       std::uint64_t n = 0;
       if (!parse_u64(tok[i], n)) {
-        throw_input_error(name, ln, "bad " + std::string(key) + " entry '" + printable(tok[i]) + "'");
+        throw_input_error(name, ln,
+                          "bad " + std::string(key) + " entry '" + printable(tok[i]) + "'");
       }
       out.push_back(n);
     }
@@ -712,7 +739,8 @@ PointCloud parse_pcd(std::string_view bytes, const std::string& name, CloudReadS
       if (tok.size() != 2) throw_input_error(name, ln, "malformed VERSION line");
       const std::string_view ver = tok[1];
       if (ver != "0.7" && ver != ".7" && ver != "0.6" && ver != ".6") {
-        throw_input_error(name, ln, "unsupported PCD version '" + printable(ver) + "' (want 0.7 or 0.6)");
+        throw_input_error(name, ln,
+                          "unsupported PCD version '" + printable(ver) + "' (want 0.7 or 0.6)");
       }
     } else if (kw == "FIELDS" || kw == "COLUMNS") {
       field_names.assign(tok.begin() + 1, tok.end());
@@ -725,7 +753,8 @@ PointCloud parse_pcd(std::string_view bytes, const std::string& name, CloudReadS
       types.clear();
       for (std::size_t i = 1; i < tok.size(); ++i) {
         if (tok[i].size() != 1) {
-          throw_input_error(name, ln, "bad TYPE entry '" + printable(tok[i]) + "' (want F, I or U)");
+          throw_input_error(name, ln,
+                            "bad TYPE entry '" + printable(tok[i]) + "' (want F, I or U)");
         }
         types += tok[i][0];
       }
@@ -750,9 +779,11 @@ PointCloud parse_pcd(std::string_view bytes, const std::string& name, CloudReadS
         }
       }
     } else if (kw == "DATA") {
-      if (tok.size() != 2 || (tok[1] != "ascii" && tok[1] != "binary" && tok[1] != "binary_compressed")) {
-        throw_input_error(name, ln, "unknown DATA type '" + printable(tok.size() > 1 ? tok[1] : "") +
-                                        "' (want ascii, binary or binary_compressed)");
+      if (tok.size() != 2 ||
+          (tok[1] != "ascii" && tok[1] != "binary" && tok[1] != "binary_compressed")) {
+        throw_input_error(name, ln,
+                          "unknown DATA type '" + printable(tok.size() > 1 ? tok[1] : "") +
+                              "' (want ascii, binary or binary_compressed)");
       }
       data = std::string(tok[1]);
       data_line = ln;
@@ -765,19 +796,20 @@ PointCloud parse_pcd(std::string_view bytes, const std::string& name, CloudReadS
   if (field_names.empty()) throw_input_error(name, data_line, "header has no FIELDS line");
   const std::size_t nf = field_names.size();
   if (sizes.size() != nf) {
-    throw_input_error(name, sizes_line ? sizes_line : data_line,
-                      "SIZE has " + std::to_string(sizes.size()) + " entries, FIELDS has " +
-                          std::to_string(nf));
+    throw_input_error(
+        name, sizes_line ? sizes_line : data_line,
+        "SIZE has " + std::to_string(sizes.size()) + " entries, FIELDS has " + std::to_string(nf));
   }
   if (types.size() != nf) {
-    throw_input_error(name, types_line ? types_line : data_line,
-                      "TYPE has " + std::to_string(types.size()) + " entries, FIELDS has " +
-                          std::to_string(nf));
+    throw_input_error(
+        name, types_line ? types_line : data_line,
+        "TYPE has " + std::to_string(types.size()) + " entries, FIELDS has " + std::to_string(nf));
   }
   if (counts_line == 0) counts.assign(nf, 1);
   if (counts.size() != nf) {
-    throw_input_error(name, counts_line, "COUNT has " + std::to_string(counts.size()) +
-                                             " entries, FIELDS has " + std::to_string(nf));
+    throw_input_error(name, counts_line,
+                      "COUNT has " + std::to_string(counts.size()) + " entries, FIELDS has " +
+                          std::to_string(nf));
   }
   std::vector<PcdField> fields(nf);
   std::uint64_t row_bytes = 0;
@@ -796,7 +828,8 @@ PointCloud parse_pcd(std::string_view bytes, const std::string& name, CloudReadS
                             " (want F4, F8, I1/2/4/8 or U1/2/4/8)");
     }
     f.scalar = *s;
-    if (f.count == 0) throw_input_error(name, counts_line, "field '" + printable(f.name) + "' has COUNT 0");
+    if (f.count == 0)
+      throw_input_error(name, counts_line, "field '" + printable(f.name) + "' has COUNT 0");
     f.byte_offset = row_bytes;
     f.token_offset = row_tokens;
     const auto fb = checked_mul(f.size, f.count);
@@ -807,8 +840,7 @@ PointCloud parse_pcd(std::string_view bytes, const std::string& name, CloudReadS
     row_tokens = *rt;
   }
   const RoleColumns cols = assign_roles(
-      field_names, name, fields_line, "field",
-      [&](std::size_t i) { return fields[i].count == 1; },
+      field_names, name, fields_line, "field", [&](std::size_t i) { return fields[i].count == 1; },
       [&](std::size_t i) {
         return "field '" + fields[i].name + "' has COUNT " + std::to_string(fields[i].count) +
                " (x, y and z must have COUNT 1)";
@@ -819,9 +851,9 @@ PointCloud parse_pcd(std::string_view bytes, const std::string& name, CloudReadS
   const auto wh = checked_mul(*width, h);
   if (!wh) throw_input_error(name, data_line, "WIDTH x HEIGHT overflows");
   if (points && *points != *wh) {
-    throw_input_error(name, points_line,
-                      "POINTS " + std::to_string(*points) + " is not WIDTH x HEIGHT = " +
-                          std::to_string(*wh));
+    throw_input_error(
+        name, points_line,
+        "POINTS " + std::to_string(*points) + " is not WIDTH x HEIGHT = " + std::to_string(*wh));
   }
   const std::uint64_t n = *wh;
   if (n > kMaxCloudPoints) {
@@ -838,9 +870,9 @@ PointCloud parse_pcd(std::string_view bytes, const std::string& name, CloudReadS
     Lines rows(bytes.substr(body), data_line + 1);
     for (std::uint64_t i = 0; i < n; ++i) {
       if (!rows.next_nonblank(line)) {
-        throw_input_error(name, rows.line(),
-                          "truncated: POINTS is " + std::to_string(n) + ", found " +
-                              std::to_string(i) + " rows");
+        throw_input_error(
+            name, rows.line(),
+            "truncated: POINTS is " + std::to_string(n) + ", found " + std::to_string(i) + " rows");
       }
       split_ws(line, tok);
       if (tok.size() != row_tokens) {
@@ -863,7 +895,8 @@ PointCloud parse_pcd(std::string_view bytes, const std::string& name, CloudReadS
         const int c = cols[static_cast<std::size_t>(r)];
         if (c < 0) continue;
         double d = 0.0;
-        parse_double(tok[static_cast<std::size_t>(fields[static_cast<std::size_t>(c)].token_offset)], d);
+        parse_double(
+            tok[static_cast<std::size_t>(fields[static_cast<std::size_t>(c)].token_offset)], d);
         v[static_cast<std::size_t>(r)] = d;
       }
       out.add(v, rows.line(), static_cast<std::size_t>(i));
@@ -886,8 +919,9 @@ PointCloud parse_pcd(std::string_view bytes, const std::string& name, CloudReadS
     payload.remove_prefix(8);
     if (csize > payload.size()) {
       throw_input_error(name, 0,
-                        "truncated: " + std::to_string(csize) + " compressed bytes declared, only " +
-                            std::to_string(payload.size()) + " follow");
+                        "truncated: " + std::to_string(csize) +
+                            " compressed bytes declared, only " + std::to_string(payload.size()) +
+                            " follow");
     }
     if (usize != *need) {
       throw_input_error(name, 0,
@@ -898,9 +932,9 @@ PointCloud parse_pcd(std::string_view bytes, const std::string& name, CloudReadS
     payload = decompressed;
   } else if (*need > payload.size()) {
     throw_input_error(name, 0,
-                      "truncated: " + std::to_string(n) + " points of " + std::to_string(row_bytes) +
-                          " bytes need " + std::to_string(*need) + " bytes, only " +
-                          std::to_string(payload.size()) + " follow");
+                      "truncated: " + std::to_string(n) + " points of " +
+                          std::to_string(row_bytes) + " bytes need " + std::to_string(*need) +
+                          " bytes, only " + std::to_string(payload.size()) + " follow");
   }
   const bool columnwise = data == "binary_compressed";
   CloudBuilder out(name, cols, static_cast<std::size_t>(n));
@@ -910,9 +944,8 @@ PointCloud parse_pcd(std::string_view bytes, const std::string& name, CloudReadS
       if (c < 0) continue;
       const PcdField& f = fields[static_cast<std::size_t>(c)];  // COUNT 1
       // Column-wise: field f's values for all points follow those of the fields before it.
-      const std::size_t at = columnwise
-                                 ? static_cast<std::size_t>(f.byte_offset * n + i * f.size)
-                                 : static_cast<std::size_t>(i * row_bytes + f.byte_offset);
+      const std::size_t at = columnwise ? static_cast<std::size_t>(f.byte_offset * n + i * f.size)
+                                        : static_cast<std::size_t>(i * row_bytes + f.byte_offset);
       v[static_cast<std::size_t>(r)] = load_scalar(payload.data() + at, f.scalar, false);
     }
     out.add(v, 0, i);
@@ -960,8 +993,8 @@ PointCloud parse_xyz_csv(std::string_view text, const std::string& name, CloudRe
       }
       ncols = tok.size();
       if (ncols < 3) {
-        throw_input_error(name, ln, "expected at least 3 columns (x, y, z), found " +
-                                        std::to_string(ncols));
+        throw_input_error(name, ln,
+                          "expected at least 3 columns (x, y, z), found " + std::to_string(ncols));
       }
       cols = {kX, kY, kZ, -1, -1};
       out.emplace(name, cols, text.size() / 16 + 1);
@@ -969,22 +1002,26 @@ PointCloud parse_xyz_csv(std::string_view text, const std::string& name, CloudRe
       comma ? split_comma(t, tok) : split_ws(t, tok);
     }
     if (tok.size() != ncols) {
-      throw_input_error(name, ln, "expected " + std::to_string(ncols) + " fields, found " +
-                                      std::to_string(tok.size()));
+      throw_input_error(
+          name, ln,
+          "expected " + std::to_string(ncols) + " fields, found " + std::to_string(tok.size()));
     }
     for (int r = 0; r < kRoleCount; ++r) {
       const int c = cols[static_cast<std::size_t>(r)];
       if (c < 0) continue;
       const std::string_view s = tok[static_cast<std::size_t>(c)];
       if (!parse_double(s, v[static_cast<std::size_t>(r)])) {
-        throw_input_error(name, ln,
-                          "bad number '" + printable(s) + "' in column " + std::to_string(c + 1) +
-                              (col_names.empty() ? std::string(" (") + kRoleName[r] + ")"
-                                                 : " ('" + printable(col_names[static_cast<std::size_t>(c)]) + "')"));
+        throw_input_error(
+            name, ln,
+            "bad number '" + printable(s) + "' in column " + std::to_string(c + 1) +
+                (col_names.empty()
+                     ? std::string(" (") + kRoleName[r] + ")"
+                     : " ('" + printable(col_names[static_cast<std::size_t>(c)]) + "')"));
       }
     }
     if (index >= kMaxCloudPoints) {
-      throw_input_error(name, ln, "more than the limit of " + std::to_string(kMaxCloudPoints) + " points");
+      throw_input_error(name, ln,
+                        "more than the limit of " + std::to_string(kMaxCloudPoints) + " points");
     }
     out->add(v, ln, index++);
   }
@@ -1046,14 +1083,18 @@ void write_ply_rgb(const std::filesystem::path& path, const PointCloud& cloud,
   tmp += ".part";
   {
     std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    if (!f) throw_input_error(tmp.string(), 0, std::string("cannot create: ") + std::strerror(errno));
+    if (!f)
+      throw_input_error(tmp.string(), 0, std::string("cannot create: ") + std::strerror(errno));
     f.write(buf.data(), static_cast<std::streamsize>(buf.size()));
     f.close();
-    if (!f) throw_input_error(tmp.string(), 0, std::string("write failed: ") + std::strerror(errno));
+    if (!f)
+      throw_input_error(tmp.string(), 0, std::string("write failed: ") + std::strerror(errno));
   }
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
-  if (ec) throw_input_error(path.string(), 0, "cannot rename " + tmp.filename().string() + ": " + ec.message());
+  if (ec)
+    throw_input_error(path.string(), 0,
+                      "cannot rename " + tmp.filename().string() + ": " + ec.message());
 }
 
 }  // namespace wallar::cloud

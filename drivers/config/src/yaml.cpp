@@ -17,8 +17,8 @@
 namespace wallar::config {
 namespace {
 
-constexpr int kMaxDepth = 32;                       // deeper nesting is no config of ours
-constexpr std::size_t kMaxFileBytes = 16u << 20;    // 16 MiB
+constexpr int kMaxDepth = 32;                     // deeper nesting is no config of ours
+constexpr std::size_t kMaxFileBytes = 16u << 20;  // 16 MiB
 
 std::string child_path(const std::string& parent, std::string_view key) {
   if (parent.empty()) return std::string(key);
@@ -151,8 +151,9 @@ class YamlBuilder {
 // YamlNode
 
 void YamlNode::fail(std::string_view msg) const {
-  throw_input_error(*file_, line_, "'" + (path_.empty() ? std::string("<root>") : path_) + "' " +
-                                       std::string(msg));
+  throw_input_error(
+      *file_, line_,
+      "'" + (path_.empty() ? std::string("<root>") : path_) + "' " + std::string(msg));
 }
 
 const YamlNode* YamlNode::find(std::string_view key) const {

@@ -79,9 +79,8 @@ void parse_csv(std::string_view text, const std::string& name, std::size_t colum
     std::size_t start = 0;
     for (;;) {
       const std::size_t comma = raw.find(',', start);
-      row.fields.push_back(trim(raw.substr(start, comma == std::string_view::npos
-                                                      ? std::string_view::npos
-                                                      : comma - start)));
+      row.fields.push_back(trim(raw.substr(
+          start, comma == std::string_view::npos ? std::string_view::npos : comma - start)));
       if (comma == std::string_view::npos) break;
       start = comma + 1;
     }
@@ -97,7 +96,8 @@ void parse_csv(std::string_view text, const std::string& name, std::size_t colum
 
 std::string read_text_file(const std::filesystem::path& path) {
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw_input_error(path.string(), 0, "no such file");
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw_input_error(path.string(), 0, "no such file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw_input_error(path.string(), 0, std::string("cannot open: ") + std::strerror(errno));
   std::ostringstream text;

@@ -68,7 +68,8 @@ void write_all(int fd, const std::string& text, const fs::path& path) {
 
 int open_csv(const fs::path& path, const char* header) {
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw_input_error(path.string(), 0, std::string("cannot create: ") + std::strerror(errno));
+  if (fd < 0)
+    throw_input_error(path.string(), 0, std::string("cannot create: ") + std::strerror(errno));
   write_all(fd, header, path);
   return fd;
 }
@@ -88,7 +89,8 @@ std::string format_T_BS(const SE3d& T) {
 
 void write_text_file(const fs::path& path, const std::string& text) {
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw_input_error(path.string(), 0, std::string("cannot create: ") + std::strerror(errno));
+  if (fd < 0)
+    throw_input_error(path.string(), 0, std::string("cannot create: ") + std::strerror(errno));
   write_all(fd, text, path);
   ::fsync(fd);
   ::close(fd);
@@ -264,8 +266,9 @@ void write_camera_sensor_yaml(const fs::path& path, const CameraCalibration& c) 
   std::ostringstream s;
   s << "%YAML:1.0\n# General sensor definitions.\nsensor_type: camera\ncomment: " << c.name
     << " (written by wallar)\n\n# Sensor extrinsics wrt. the body-frame.\n"
-    << format_T_BS(c.T_body_cam) << "\n# Camera specific definitions.\nrate_hz: "
-    << format_euroc_double(c.rate_hz) << "\nresolution: [" << c.width_px << ", " << c.height_px
+    << format_T_BS(c.T_body_cam)
+    << "\n# Camera specific definitions.\nrate_hz: " << format_euroc_double(c.rate_hz)
+    << "\nresolution: [" << c.width_px << ", " << c.height_px
     << "]\ncamera_model: pinhole\nintrinsics: [" << format_euroc_double(c.fx) << ", "
     << format_euroc_double(c.fy) << ", " << format_euroc_double(c.cx) << ", "
     << format_euroc_double(c.cy) << "] #fu, fv, cu, cv\ndistortion_model: " << c.distortion_model

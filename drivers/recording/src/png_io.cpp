@@ -13,7 +13,8 @@ namespace wallar::recording {
 
 Image load_png_gray(const std::filesystem::path& path, int expected_width, int expected_height) {
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw_input_error(path.string(), 0, "no such image file");
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw_input_error(path.string(), 0, "no such image file");
   png_image png;
   std::memset(&png, 0, sizeof png);
   png.version = PNG_IMAGE_VERSION;
@@ -55,8 +56,8 @@ void save_png_gray(const std::filesystem::path& path, const Image& image) {
   png.width = static_cast<png_uint_32>(image.width());
   png.height = static_cast<png_uint_32>(image.height());
   png.format = PNG_FORMAT_GRAY;
-  if (png_image_write_to_file(&png, path.c_str(), 0, image.data(), image.stride_bytes(),
-                              nullptr) == 0) {
+  if (png_image_write_to_file(&png, path.c_str(), 0, image.data(), image.stride_bytes(), nullptr) ==
+      0) {
     throw_input_error(path.string(), 0, std::string("cannot write PNG: ") + png.message);
   }
 }

@@ -28,8 +28,8 @@ StreamStats stream_stats(std::string name, std::span<const TimeNs> t_ns, double 
   std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
                    sorted.end());
   s.median_period_ns = sorted[sorted.size() / 2];
-  const double nominal_ns = nominal_rate_hz > 0.0 ? 1e9 / nominal_rate_hz
-                                                  : static_cast<double>(s.median_period_ns);
+  const double nominal_ns =
+      nominal_rate_hz > 0.0 ? 1e9 / nominal_rate_hz : static_cast<double>(s.median_period_ns);
   for (DurationNs p : periods) {
     if (static_cast<double>(p) > 1.5 * nominal_ns) {
       ++s.gaps;

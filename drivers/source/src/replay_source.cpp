@@ -75,7 +75,8 @@ ReplayStats ReplaySource::run(SensorSink& sink, const std::atomic<bool>& stop) {
   };
   auto handle = [&](sync::StereoPairer::Result&& r) {
     for (int c = 0; c < 2; ++c) {
-      if (r.unpaired[static_cast<std::size_t>(c)]) sink.on_unpaired(c, *r.unpaired[static_cast<std::size_t>(c)]);
+      if (r.unpaired[static_cast<std::size_t>(c)])
+        sink.on_unpaired(c, *r.unpaired[static_cast<std::size_t>(c)]);
     }
     if (r.pair) deliver_pair(std::move(*r.pair));
   };

@@ -39,8 +39,8 @@ std::optional<StaticImuEstimate> estimate_static_imu(std::span<const ImuSample> 
   est.gyro_std_rad_s = std::sqrt(gyro_var / n);
 
   // The smallest rotation that turns the measured "up" into world +z: yaw stays free.
-  est.q_world_body =
-      Eigen::Quaterniond::FromTwoVectors(est.mean_accel_m_s2.normalized(), Eigen::Vector3d::UnitZ());
+  est.q_world_body = Eigen::Quaterniond::FromTwoVectors(est.mean_accel_m_s2.normalized(),
+                                                        Eigen::Vector3d::UnitZ());
   return est;
 }
 

@@ -4,10 +4,10 @@
 /// target by hwy/foreach_target.h).
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "plane_kernel.cpp"  // NOLINT: found through this file's folder
+#include "wallar/dsp/walls/plane_kernel.hpp"
+
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/highway.h>
-
-#include "wallar/dsp/walls/plane_kernel.hpp"
 
 HWY_BEFORE_NAMESPACE();
 namespace wallar::dsp {
@@ -32,9 +32,9 @@ PlaneCounts ScorePlaneImpl(const float* HWY_RESTRICT x, const float* HWY_RESTRIC
   auto sq0 = hn::Zero(df), sq1 = hn::Zero(df);
   std::size_t i = 0;
   for (; i + 2 * lanes <= n_padded; i += 2 * lanes) {
-    const auto s0 = hn::MulAdd(vnx, hn::LoadU(df, x + i),
-                               hn::MulAdd(vny, hn::LoadU(df, y + i),
-                                          hn::MulAdd(vnz, hn::LoadU(df, z + i), vmd)));
+    const auto s0 = hn::MulAdd(
+        vnx, hn::LoadU(df, x + i),
+        hn::MulAdd(vny, hn::LoadU(df, y + i), hn::MulAdd(vnz, hn::LoadU(df, z + i), vmd)));
     const auto s1 = hn::MulAdd(vnx, hn::LoadU(df, x + i + lanes),
                                hn::MulAdd(vny, hn::LoadU(df, y + i + lanes),
                                           hn::MulAdd(vnz, hn::LoadU(df, z + i + lanes), vmd)));
@@ -48,9 +48,9 @@ PlaneCounts ScorePlaneImpl(const float* HWY_RESTRICT x, const float* HWY_RESTRIC
     sq1 = hn::Add(sq1, hn::IfThenElseZero(m1, hn::Mul(s1, s1)));
   }
   for (; i < n_padded; i += lanes) {  // an odd number of vectors (narrow targets)
-    const auto s0 = hn::MulAdd(vnx, hn::LoadU(df, x + i),
-                               hn::MulAdd(vny, hn::LoadU(df, y + i),
-                                          hn::MulAdd(vnz, hn::LoadU(df, z + i), vmd)));
+    const auto s0 = hn::MulAdd(
+        vnx, hn::LoadU(df, x + i),
+        hn::MulAdd(vny, hn::LoadU(df, y + i), hn::MulAdd(vnz, hn::LoadU(df, z + i), vmd)));
     const auto m0 = hn::Lt(hn::Abs(s0), vt);
     in0 = hn::Add(in0, hn::IfThenElseZero(m0, one));
     bk0 = hn::Add(bk0, hn::IfThenElseZero(hn::Lt(s0, vmt), one));
@@ -82,9 +82,8 @@ PlaneCounts score_plane(const float* x, const float* y, const float* z, std::siz
 
 const char* plane_kernel_target() { return HWY_DYNAMIC_DISPATCH(TargetNameImpl)(); }
 
-PlaneCounts score_plane_scalar(const float* x, const float* y, const float* z,
-                               std::size_t n_padded, float nx, float ny, float nz, float d,
-                               float threshold) {
+PlaneCounts score_plane_scalar(const float* x, const float* y, const float* z, std::size_t n_padded,
+                               float nx, float ny, float nz, float d, float threshold) {
   PlaneCounts c;
   for (std::size_t i = 0; i < n_padded; ++i) {
     const float s = nx * x[i] + ny * y[i] + nz * z[i] - d;

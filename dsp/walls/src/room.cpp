@@ -45,10 +45,10 @@ void set_extent(Wall& wall, const std::vector<Eigen::Vector3d>& inliers,
                 const std::optional<Eigen::Vector3d>& up) {
   const Eigen::Vector3d& n = wall.plane.n;
   // u horizontal and v up for walls; any orthonormal pair otherwise. u x v = n.
-  Eigen::Vector3d v_hint = up && std::abs(up->normalized().dot(n)) < 0.9
-                               ? up->normalized()
-                               : (std::abs(n.z()) < 0.9 ? Eigen::Vector3d::UnitZ()
-                                                        : Eigen::Vector3d::UnitY());
+  Eigen::Vector3d v_hint =
+      up && std::abs(up->normalized().dot(n)) < 0.9
+          ? up->normalized()
+          : (std::abs(n.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitY());
   wall.v = (v_hint - v_hint.dot(n) * n).normalized();
   wall.u = wall.v.cross(n).normalized();
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
@@ -96,9 +96,8 @@ RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& co
       result.rounds += wall.rounds + horizontal.rounds;
       // Both searches score in the same units; the better surface is taken first. A second
       // floor or ceiling is not accepted.
-      const bool h_ok = horizontal.found &&
-                        !((horizontal.plane.n.dot(*up) > 0 && have_floor) ||
-                          (horizontal.plane.n.dot(*up) < 0 && have_ceiling));
+      const bool h_ok = horizontal.found && !((horizontal.plane.n.dot(*up) > 0 && have_floor) ||
+                                              (horizontal.plane.n.dot(*up) < 0 && have_ceiling));
       best = wall;
       if (h_ok && (!wall.found || horizontal.score > wall.score)) best = horizontal;
     } else {
@@ -127,7 +126,8 @@ RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& co
       // The first wall fixes the room's axes for the walls after it.
       bool first_wall = true;
       for (const auto& other : result.surfaces) first_wall &= other.wall.kind != SurfaceKind::kWall;
-      if (first_wall) detector_.set_manhattan(wall.plane.n, config.manhattan_tolerance_deg * kDegToRad);
+      if (first_wall)
+        detector_.set_manhattan(wall.plane.n, config.manhattan_tolerance_deg * kDegToRad);
     }
     set_extent(wall, inliers_, up);
 

@@ -12,10 +12,12 @@ namespace {
 class Scene {
  public:
   explicit Scene(std::uint64_t seed) : rng_(seed) {}
-  double uniform(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng_); }
+  double uniform(double lo, double hi) {
+    return std::uniform_real_distribution<double>(lo, hi)(rng_);
+  }
   void add(double x, double y, double z, PointLabel label) {
-    out.cloud.push_back(Eigen::Vector3f(static_cast<float>(x), static_cast<float>(y),
-                                        static_cast<float>(z)));
+    out.cloud.push_back(
+        Eigen::Vector3f(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)));
     out.labels.push_back(label);
   }
   LabelledCloud out;
@@ -60,7 +62,8 @@ LabelledCloud make_sparse_map(const SparseMapParams& p) {
   const auto wall =
       static_cast<std::size_t>(std::lround(p.wall_fraction * static_cast<double>(p.points)));
   const double rho = std::clamp(p.rho_b, 0.0, 0.95);
-  const auto back = static_cast<std::size_t>(std::lround(rho / (1.0 - rho) * static_cast<double>(wall)));
+  const auto back =
+      static_cast<std::size_t>(std::lround(rho / (1.0 - rho) * static_cast<double>(wall)));
   for (std::size_t i = 0; i < wall; ++i) {
     s.add(s.uniform(-2.0, 2.0), s.uniform(-1.5, 1.5), p.wall_distance_m + s.uniform(-half, half),
           PointLabel::kWall);
@@ -85,17 +88,26 @@ LabelledCloud make_room_scene(const RoomSceneParams& p) {
   auto& surf = s.out.surfaces;
   // Walls first (front z+, then right x+, back z-, left x-), then floor and ceiling; each
   // normal points into the room, toward the viewpoint at the origin.
-  for (std::size_t i = 0; i < n; ++i) s.add(s.uniform(-hw, hw), s.uniform(top, bottom), hd + s.uniform(-h, h), PointLabel::kWall);
+  for (std::size_t i = 0; i < n; ++i)
+    s.add(s.uniform(-hw, hw), s.uniform(top, bottom), hd + s.uniform(-h, h), PointLabel::kWall);
   surf.push_back({-Eigen::Vector3d::UnitZ(), -hd});
-  for (std::size_t i = 0; i < n; ++i) s.add(hw + s.uniform(-h, h), s.uniform(top, bottom), s.uniform(-hd, hd), PointLabel::kOtherWall);
+  for (std::size_t i = 0; i < n; ++i)
+    s.add(hw + s.uniform(-h, h), s.uniform(top, bottom), s.uniform(-hd, hd),
+          PointLabel::kOtherWall);
   surf.push_back({-Eigen::Vector3d::UnitX(), -hw});
-  for (std::size_t i = 0; i < n; ++i) s.add(s.uniform(-hw, hw), s.uniform(top, bottom), -hd + s.uniform(-h, h), PointLabel::kOtherWall);
+  for (std::size_t i = 0; i < n; ++i)
+    s.add(s.uniform(-hw, hw), s.uniform(top, bottom), -hd + s.uniform(-h, h),
+          PointLabel::kOtherWall);
   surf.push_back({Eigen::Vector3d::UnitZ(), -hd});
-  for (std::size_t i = 0; i < n; ++i) s.add(-hw + s.uniform(-h, h), s.uniform(top, bottom), s.uniform(-hd, hd), PointLabel::kOtherWall);
+  for (std::size_t i = 0; i < n; ++i)
+    s.add(-hw + s.uniform(-h, h), s.uniform(top, bottom), s.uniform(-hd, hd),
+          PointLabel::kOtherWall);
   surf.push_back({Eigen::Vector3d::UnitX(), -hw});
-  for (std::size_t i = 0; i < n; ++i) s.add(s.uniform(-hw, hw), bottom + s.uniform(-h, h), s.uniform(-hd, hd), PointLabel::kFloor);
+  for (std::size_t i = 0; i < n; ++i)
+    s.add(s.uniform(-hw, hw), bottom + s.uniform(-h, h), s.uniform(-hd, hd), PointLabel::kFloor);
   surf.push_back({-Eigen::Vector3d::UnitY(), -bottom});  // floor: front is up (-y)
-  for (std::size_t i = 0; i < n; ++i) s.add(s.uniform(-hw, hw), top + s.uniform(-h, h), s.uniform(-hd, hd), PointLabel::kCeiling);
+  for (std::size_t i = 0; i < n; ++i)
+    s.add(s.uniform(-hw, hw), top + s.uniform(-h, h), s.uniform(-hd, hd), PointLabel::kCeiling);
   surf.push_back({Eigen::Vector3d::UnitY(), top});  // ceiling: front is down (+y)
   for (std::size_t i = 0; i < p.clutter; ++i) {
     s.add(s.uniform(-hw + 0.3, hw - 0.3), s.uniform(top + 0.3, bottom - 0.3),

@@ -3,11 +3,12 @@
 /// @brief Backlier-aware RANSAC: sampling, candidate checks, scoring, adaptive rounds, LO.
 #include "wallar/dsp/walls/wall_detector.hpp"
 
+#include <math.h>  // lgamma_r
+
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <math.h>  // lgamma_r
 #include <limits>
 #include <stdexcept>
 
@@ -47,7 +48,10 @@ double binomial_min_inliers(double log_score, double rho_b, std::size_t n_points
   if (best_with(hi) <= log_score) return hi;
   while (lo < hi) {
     const std::uint32_t mid = lo + (hi - lo) / 2;
-    if (best_with(mid) > log_score) hi = mid; else lo = mid + 1;
+    if (best_with(mid) > log_score)
+      hi = mid;
+    else
+      lo = mid + 1;
   }
   return lo;
 }
@@ -79,8 +83,8 @@ std::optional<Plane> fit_plane_least_squares(std::span<const Eigen::Vector3d> po
 
 WallDetector::WallDetector(std::size_t max_points, DetectorConfig config)
     : config_(config), capacity_(max_points), rng_(config.seed) {
-  const std::size_t cap = (max_points + kPointPadding - 1) / kPointPadding * kPointPadding +
-                          kPointPadding;
+  const std::size_t cap =
+      (max_points + kPointPadding - 1) / kPointPadding * kPointPadding + kPointPadding;
   x_.assign(cap, kNaN);
   y_.assign(cap, kNaN);
   z_.assign(cap, kNaN);
@@ -217,7 +221,8 @@ bool WallDetector::sample(Mode mode, bool guided, Eigen::Vector3f& n, float& d) 
   const auto point = [this](std::uint32_t i) { return Eigen::Vector3f(x_[i], y_[i], z_[i]); };
   const std::uint32_t i0 = draw(n_);
   const std::uint32_t k = mode == Mode::kHorizontal ? 0 : nb_count_[i0];
-  const bool use_nb = guided && k >= static_cast<std::uint32_t>(sample_size(static_cast<int>(mode)) - 1);
+  const bool use_nb =
+      guided && k >= static_cast<std::uint32_t>(sample_size(static_cast<int>(mode)) - 1);
   auto other = [&]() -> std::uint32_t {
     if (use_nb) return nb_index_[std::size_t{i0} * config_.neighbours + draw(k)];
     return draw(n_);
@@ -287,16 +292,17 @@ void WallDetector::build_neighbours(Mode mode) {
     return static_cast<std::uint32_t>((ix << 20) | (iy << 10) | iz);
   };
   for (std::size_t i = 0; i < n_; ++i) {
-    grid_key_[i] = key(cells(x_[i], lo.x()), cells(y_[i], lo.y()),
-                       planar ? 0 : cells(z_[i], lo.z()));
+    grid_key_[i] =
+        key(cells(x_[i], lo.x()), cells(y_[i], lo.y()), planar ? 0 : cells(z_[i], lo.z()));
     grid_order_[i] = static_cast<std::uint32_t>(i);
   }
   std::sort(grid_order_.begin(), grid_order_.begin() + static_cast<std::ptrdiff_t>(n_),
             [&](std::uint32_t a, std::uint32_t b) { return grid_key_[a] < grid_key_[b]; });
   // Keys in sorted order, reusing the key array's tail is not possible: look up through order.
   const auto first_with_key = [&](std::uint32_t k) {
-    return std::lower_bound(grid_order_.begin(), grid_order_.begin() + static_cast<std::ptrdiff_t>(n_), k,
-                            [&](std::uint32_t idx, std::uint32_t kk) { return grid_key_[idx] < kk; });
+    return std::lower_bound(
+        grid_order_.begin(), grid_order_.begin() + static_cast<std::ptrdiff_t>(n_), k,
+        [&](std::uint32_t idx, std::uint32_t kk) { return grid_key_[idx] < kk; });
   };
   std::array<std::pair<float, std::uint32_t>, 64> heap;
   const std::uint32_t keep = std::min<std::uint32_t>(K, 64);
@@ -313,7 +319,8 @@ void WallDetector::build_neighbours(Mode mode) {
           if (ix < 0 || iy < 0 || iz < 0 || ix > 1023 || iy > 1023 || iz > 1023) continue;
           const std::uint32_t k = key(ix, iy, iz);
           for (auto it = first_with_key(k);
-               it != grid_order_.begin() + static_cast<std::ptrdiff_t>(n_) && grid_key_[*it] == k; ++it) {
+               it != grid_order_.begin() + static_cast<std::ptrdiff_t>(n_) && grid_key_[*it] == k;
+               ++it) {
             const std::uint32_t j = *it;
             if (j == i) continue;
             const float ddx = x_[j] - x_[i], ddy = y_[j] - y_[i];
@@ -377,7 +384,8 @@ bool WallDetector::refit(Mode mode, Eigen::Vector3f& n, float& d) const {
     for (const auto& p : scratch_points_) mean += p.head<2>();
     mean /= static_cast<double>(m);
     Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
-    for (const auto& p : scratch_points_) cov += (p.head<2>() - mean) * (p.head<2>() - mean).transpose();
+    for (const auto& p : scratch_points_)
+      cov += (p.head<2>() - mean) * (p.head<2>() - mean).transpose();
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
     if (eig.info() != Eigen::Success || !(eig.eigenvalues()(1) > 1e-12)) return false;
     const Eigen::Vector2d nn = eig.eigenvectors().col(0).normalized();
@@ -458,7 +466,8 @@ Detection WallDetector::detect(Mode mode, std::span<const Plane> warm_start) {
     const double n_min = config_.method == ScoreMethod::kBinomial
                              ? binomial_min_inliers(s, rho_for_binomial(), n_)
                              : s;
-    const double w = std::clamp(n_min / static_cast<double>(n_), 1.0 / static_cast<double>(n_), w_best);
+    const double w =
+        std::clamp(n_min / static_cast<double>(n_), 1.0 / static_cast<double>(n_), w_best);
     // Uniform rounds draw m inliers with probability w^m; guided rounds with w * q^(m-1), q
     // the fraction of an inlier's neighbours that are inliers, measured on the best plane and
     // scaled down with the inlier count (a sparser plane has sparser neighbourhoods).
@@ -513,7 +522,8 @@ Detection WallDetector::detect(Mode mode, std::span<const Plane> warm_start) {
   best.score = best_score;
   best.rmse_m = std::sqrt(static_cast<double>(best_counts.inlier_sq_sum) / best_counts.inliers);
   const double total = static_cast<double>(best.inliers) + best.backliers;
-  best.rho_b = config_.method == ScoreMethod::kBinomial ? rho_for_binomial() : best.backliers / total;
+  best.rho_b =
+      config_.method == ScoreMethod::kBinomial ? rho_for_binomial() : best.backliers / total;
   best.rounds_needed = target;
   return best;
 }

@@ -64,7 +64,8 @@ CameraConfig parse_camera(const YamlNode& node) {
   c.width_px = positive_int(node.at("width"), 16384);
   c.height_px = positive_int(node.at("height"), 16384);
   c.fps = positive_double(node.at("fps"));
-  if (const YamlNode* f = node.find("format")) c.pixel_format = one_of(*f, {"GREY", "YUYV", "MJPG"});
+  if (const YamlNode* f = node.find("format"))
+    c.pixel_format = one_of(*f, {"GREY", "YUYV", "MJPG"});
   return c;
 }
 
@@ -74,8 +75,8 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
   const config::YamlDocument doc = config::YamlDocument::parse(text, name);
   const YamlNode& root = doc.root();
   if (!root.is_map()) root.fail("must be a map (a board file)");
-  root.check_keys({"board", "source", "replay", "cameras", "imu", "display", "calibration",
-                   "input"});
+  root.check_keys(
+      {"board", "source", "replay", "cameras", "imu", "display", "calibration", "input"});
   BoardConfig b;
   b.file = name;
 
@@ -84,8 +85,9 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
   b.name = board.at("name").as_string();
   b.description = board.get_string("description", "");
 
-  b.source = one_of(root.at("source"), {"replay", "live"}) == "replay" ? BoardConfig::Source::kReplay
-                                                                       : BoardConfig::Source::kLive;
+  b.source = one_of(root.at("source"), {"replay", "live"}) == "replay"
+                 ? BoardConfig::Source::kReplay
+                 : BoardConfig::Source::kLive;
   if (b.source == BoardConfig::Source::kReplay) {
     const YamlNode& r = root.at("replay");
     r.check_keys({"recording", "rate", "start_offset_s", "skip"});
@@ -106,8 +108,9 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
     if (const YamlNode* t = cams.find("trigger")) b.camera_trigger = parse_gpio(*t);
   }
   if (b.source == BoardConfig::Source::kReplay && root.has("cameras")) {
-    root.at("cameras").fail("is for live boards (source: live); a replay board takes its cameras "
-                            "from the recording");
+    root.at("cameras").fail(
+        "is for live boards (source: live); a replay board takes its cameras "
+        "from the recording");
   }
 
   if (const YamlNode* imu = root.find("imu")) {

@@ -40,7 +40,9 @@ struct RigCalibration {
   ImuCalibration imu;
 
   /// T_left_right: right camera coordinates into the left camera.
-  [[nodiscard]] SE3d T_cam0_cam1() const { return cams[0].T_body_cam.inverse() * cams[1].T_body_cam; }
+  [[nodiscard]] SE3d T_cam0_cam1() const {
+    return cams[0].T_body_cam.inverse() * cams[1].T_body_cam;
+  }
 };
 
 }  // namespace wallar

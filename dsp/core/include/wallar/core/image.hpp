@@ -95,12 +95,12 @@ class Image {
   /// A new gray/YUYV/RGB image in a fresh heap buffer with a tight stride.
   static Image allocate(int width, int height, PixelFormat format) {
     const int stride = width * bytes_per_pixel(format);
-    return Image(HeapImageBuffer::create(static_cast<std::size_t>(stride) * height), width,
-                 height, stride, format);
+    return Image(HeapImageBuffer::create(static_cast<std::size_t>(stride) * height), width, height,
+                 stride, format);
   }
 
-  Image(const Image& other) : Image(other.buffer_, other.width_, other.height_, other.stride_,
-                                    other.format_) {}
+  Image(const Image& other)
+      : Image(other.buffer_, other.width_, other.height_, other.stride_, other.format_) {}
   Image(Image&& other) noexcept
       : buffer_(std::exchange(other.buffer_, nullptr)),
         width_(other.width_),
@@ -130,7 +130,9 @@ class Image {
   [[nodiscard]] const std::uint8_t* data() const { return buffer_ ? buffer_->data() : nullptr; }
   /// Writable pixels: only for the producer, before the image is published.
   [[nodiscard]] std::uint8_t* mutable_data() { return buffer_ ? buffer_->mutable_data() : nullptr; }
-  [[nodiscard]] const std::uint8_t* row(int y) const { return data() + std::ptrdiff_t{y} * stride_; }
+  [[nodiscard]] const std::uint8_t* row(int y) const {
+    return data() + std::ptrdiff_t{y} * stride_;
+  }
   [[nodiscard]] int use_count() const { return buffer_ ? buffer_->ref_count() : 0; }
 
  private:

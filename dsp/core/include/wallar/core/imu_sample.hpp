@@ -15,8 +15,8 @@ namespace wallar {
 /// One IMU measurement. t_ns is when the sensor sampled it (data-ready edge, or the device
 /// clock mapped to monotonic); publish_t_ns is when software handed it on (0 when unknown).
 struct ImuSample {
-  TimeNs t_ns = 0;                                      //!< sample time [ns]
-  TimeNs publish_t_ns = 0;                              //!< publish time [ns], 0 = unknown
+  TimeNs t_ns = 0;                                       //!< sample time [ns]
+  TimeNs publish_t_ns = 0;                               //!< publish time [ns], 0 = unknown
   Eigen::Vector3d gyro_rad_s = Eigen::Vector3d::Zero();  //!< angular rate, body frame [rad/s]
   Eigen::Vector3d accel_m_s2 = Eigen::Vector3d::Zero();  //!< specific force, body frame [m/s^2]
   std::optional<Eigen::Vector3d> mag_uT;                 //!< magnetic field, body frame [uT]

@@ -15,11 +15,11 @@
 namespace wallar {
 
 struct PointCloud {
-  std::vector<float> x;                        //!< [m], in `frame`
-  std::vector<float> y;                        //!< [m]
-  std::vector<float> z;                        //!< [m]
-  std::vector<float> weight;                   //!< optional per-point quality, empty if none
-  std::vector<std::uint16_t> observations;     //!< optional observation count, empty if none
+  std::vector<float> x;                     //!< [m], in `frame`
+  std::vector<float> y;                     //!< [m]
+  std::vector<float> z;                     //!< [m]
+  std::vector<float> weight;                //!< optional per-point quality, empty if none
+  std::vector<std::uint16_t> observations;  //!< optional observation count, empty if none
 
   [[nodiscard]] std::size_t size() const { return x.size(); }
   [[nodiscard]] bool empty() const { return x.empty(); }

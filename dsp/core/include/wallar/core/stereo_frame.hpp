@@ -14,9 +14,9 @@ namespace wallar {
 
 /// One camera image with its timing.
 struct CameraFrame {
-  TimeNs t_ns = 0;            //!< exposure time stamp [ns]
-  TimeNs publish_t_ns = 0;    //!< when the driver/replay handed it on [ns], 0 = unknown
-  std::uint64_t sequence = 0; //!< driver or recording sequence number
+  TimeNs t_ns = 0;             //!< exposure time stamp [ns]
+  TimeNs publish_t_ns = 0;     //!< when the driver/replay handed it on [ns], 0 = unknown
+  std::uint64_t sequence = 0;  //!< driver or recording sequence number
   Image image;
 };
 

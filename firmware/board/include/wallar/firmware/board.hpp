@@ -25,8 +25,8 @@ struct GpioLine {
 };
 
 struct CameraConfig {
-  std::string device;         //!< "/dev/video0"
-  std::string usb_id;         //!< "VID:PID" for hot-plug discovery and USB reset, may be empty
+  std::string device;  //!< "/dev/video0"
+  std::string usb_id;  //!< "VID:PID" for hot-plug discovery and USB reset, may be empty
   int width_px = 640;
   int height_px = 480;
   double fps = 30.0;
@@ -62,9 +62,9 @@ struct BoardConfig {
   std::string name;
   std::string description;
   enum class Source : std::uint8_t { kReplay, kLive } source = Source::kReplay;
-  ReplayConfig replay;                 //!< source == kReplay
-  CameraConfig cameras[2];             //!< source == kLive: left, right
-  double sync_tolerance_ms = -1.0;     //!< < 0: half the frame period
+  ReplayConfig replay;              //!< source == kReplay
+  CameraConfig cameras[2];          //!< source == kLive: left, right
+  double sync_tolerance_ms = -1.0;  //!< < 0: half the frame period
   std::optional<GpioLine> camera_trigger;
   ImuConfig imu;
   DisplayConfig display;

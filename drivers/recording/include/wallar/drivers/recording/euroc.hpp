@@ -124,7 +124,7 @@ class EurocWriter {
 
  private:
   std::filesystem::path mav0_;
-  int imu_fd_ = -1;                 //!< imu0/data.csv, O_APPEND
+  int imu_fd_ = -1;                    //!< imu0/data.csv, O_APPEND
   std::array<int, 2> cam_fd_{-1, -1};  //!< camN/data.csv, O_APPEND
   std::size_t imu_rows_ = 0;
   std::array<std::size_t, 2> cam_rows_{0, 0};

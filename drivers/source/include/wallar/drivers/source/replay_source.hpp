@@ -22,11 +22,11 @@
 namespace wallar::source {
 
 struct ReplayOptions {
-  double rate = 1.0;             //!< 1 = real time, 2 = twice as fast, 0 = as fast as possible
-  DurationNs start_offset_ns = 0;  //!< skip this much of the recording's start
-  std::uint32_t skip = 0;        //!< after each stereo pair played, skip this many
+  double rate = 1.0;                  //!< 1 = real time, 2 = twice as fast, 0 = as fast as possible
+  DurationNs start_offset_ns = 0;     //!< skip this much of the recording's start
+  std::uint32_t skip = 0;             //!< after each stereo pair played, skip this many
   DurationNs pair_tolerance_ns = -1;  //!< < 0: half the camera frame period from sensor.yaml
-  bool with_images = true;       //!< false: deliver frames without decoding pixels (stats)
+  bool with_images = true;            //!< false: deliver frames without decoding pixels (stats)
 };
 
 struct ReplayStats {
@@ -37,7 +37,7 @@ struct ReplayStats {
   sync::PairingStats pairing;
   TimeNs first_t_ns = 0;
   TimeNs last_t_ns = 0;
-  DurationNs wall_time_ns = 0;  //!< how long the replay took
+  DurationNs wall_time_ns = 0;     //!< how long the replay took
   DurationNs max_lateness_ns = 0;  //!< worst delivery behind schedule (paced replay)
   bool stopped = false;            //!< ended by `stop` before the end
 };

@@ -32,9 +32,8 @@ PlaneCounts score_plane(const float* x, const float* y, const float* z, std::siz
                         float nx, float ny, float nz, float d, float threshold);
 
 /// The same in plain scalar code (the reference the SIMD paths are tested against).
-PlaneCounts score_plane_scalar(const float* x, const float* y, const float* z,
-                               std::size_t n_padded, float nx, float ny, float nz, float d,
-                               float threshold);
+PlaneCounts score_plane_scalar(const float* x, const float* y, const float* z, std::size_t n_padded,
+                               float nx, float ny, float nz, float d, float threshold);
 
 /// Name of the SIMD target the dispatcher picked on this machine ("AVX2", "NEON", ...).
 const char* plane_kernel_target();

@@ -27,8 +27,8 @@ struct RoomConfig {
   std::optional<Eigen::Vector3d> gravity;  //!< "down" in the cloud's frame; enables 2-D mode
   std::vector<Eigen::Vector3d> viewpoints{Eigen::Vector3d::Zero()};
   int max_surfaces = 6;
-  std::uint32_t min_inliers = 12;      //!< smaller surfaces are not reported
-  double min_inlier_fraction = 0.02;   //!< ... nor those under this share of the points
+  std::uint32_t min_inliers = 12;     //!< smaller surfaces are not reported
+  double min_inlier_fraction = 0.02;  //!< ... nor those under this share of the points
   bool manhattan = false;
   double manhattan_tolerance_deg = 5.0;
   double merge_angle_deg = 5.0;

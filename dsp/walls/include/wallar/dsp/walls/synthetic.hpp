@@ -24,13 +24,13 @@ enum class PointLabel : std::uint8_t {
   kOutlier,     //!< anywhere in front of the wall
   kFloor,
   kCeiling,
-  kOtherWall,   //!< room scenes: the walls other than the first
+  kOtherWall,  //!< room scenes: the walls other than the first
 };
 
 struct LabelledCloud {
   PointCloud cloud;
   std::vector<PointLabel> labels;
-  Plane wall;  //!< ground truth of the wall to find (n toward the viewpoint)
+  Plane wall;                   //!< ground truth of the wall to find (n toward the viewpoint)
   std::vector<Plane> surfaces;  //!< room scenes: every surface, in label order
 };
 

@@ -18,8 +18,9 @@
 /// one's k nearest neighbours (NAPSAC-like) in every other round; the stopping rule then uses
 /// the all-inlier probability of that mixed sampler, with the neighbours' inlier fraction
 /// measured on the best candidate. Walls are surfaces, clutter fills a volume: a wall point's
-/// neighbours are far more often wall points than a random point is. A new best candidate is refined by local optimisation (least-squares refit on
-/// its inliers, re-scored, a few times: LO-RANSAC).
+/// neighbours are far more often wall points than a random point is. A new best candidate is
+/// refined by local optimisation (least-squares refit on its inliers, re-scored, a few times:
+/// LO-RANSAC).
 ///
 /// Memory: every buffer is sized in the constructor (max_points); set_points() and the detect
 /// calls allocate nothing on the heap.
@@ -45,10 +46,10 @@ enum class Sampling : std::uint8_t { kUniform, kGuided };
 
 struct DetectorConfig {
   ScoreMethod method = ScoreMethod::kBsf;
-  double threshold_m = 0.05;       //!< inlier band half-width t [m]
-  double beta = 0.5;               //!< BSF backlier weight (>= 0)
-  double rho_b = -1.0;             //!< B-RANSAC backlier probability; < 0: estimate from data
-  double confidence = 0.99;        //!< eq. 2.7's p
+  double threshold_m = 0.05;  //!< inlier band half-width t [m]
+  double beta = 0.5;          //!< BSF backlier weight (>= 0)
+  double rho_b = -1.0;        //!< B-RANSAC backlier probability; < 0: estimate from data
+  double confidence = 0.99;   //!< eq. 2.7's p
   std::uint32_t max_rounds = 200'000;
   std::uint32_t min_rounds = 200;  //!< cheap insurance against an early lucky stop
   std::uint64_t seed = 1;
@@ -57,8 +58,8 @@ struct DetectorConfig {
   double min_viewpoint_distance_m = 0.1;  //!< candidates closer to a viewpoint are skipped
   bool facing_check = true;               //!< 3-D: skip planes not facing view_dir (+-90 deg)
   Eigen::Vector3d view_dir = Eigen::Vector3d::UnitZ();  //!< camera's optical axis (3-D mode)
-  std::uint32_t neighbours = 16;          //!< guided sampling: neighbours kept per point
-  double neighbour_radius_m = 0.0;        //!< 0: derived from the cloud's extent
+  std::uint32_t neighbours = 16;    //!< guided sampling: neighbours kept per point
+  double neighbour_radius_m = 0.0;  //!< 0: derived from the cloud's extent
 };
 
 struct Detection {
@@ -66,11 +67,11 @@ struct Detection {
   Plane plane;  //!< in the input frame, n toward the viewpoints
   std::uint32_t inliers = 0;
   std::uint32_t backliers = 0;
-  double score = 0.0;     //!< in the method's units (log score for kBinomial)
-  double rmse_m = 0.0;    //!< RMS distance of the inliers to the plane
-  double rho_b = 0.0;     //!< backlier probability used (kBinomial) or observed (others)
+  double score = 0.0;   //!< in the method's units (log score for kBinomial)
+  double rmse_m = 0.0;  //!< RMS distance of the inliers to the plane
+  double rho_b = 0.0;   //!< backlier probability used (kBinomial) or observed (others)
   std::uint32_t rounds = 0;
-  std::uint32_t rounds_needed = 0;  //!< eq. 2.7 for the final estimate (capped)
+  std::uint32_t rounds_needed = 0;       //!< eq. 2.7 for the final estimate (capped)
   std::uint32_t candidates_skipped = 0;  //!< degenerate or behind-the-camera samples
 };
 
@@ -98,9 +99,10 @@ class WallDetector {
   void set_viewpoints(std::span<const Eigen::Vector3d> viewpoints);
 
   /// Loads the points to search (non-finite ones skipped and counted) and re-seeds the random
-  /// generator from config().seed, so a search depends only on the seed and the input. With a gravity vector
-  /// (pointing down, in the input frame), the cloud is rotated so that "up" is +z, and the 2-D
-  /// and horizontal detectors become available. Throws std::length_error beyond max_points.
+  /// generator from config().seed, so a search depends only on the seed and the input. With a
+  /// gravity vector (pointing down, in the input frame), the cloud is rotated so that "up" is +z,
+  /// and the 2-D and horizontal detectors become available. Throws std::length_error beyond
+  /// max_points.
   void set_points(const PointCloud& cloud, std::optional<Eigen::Vector3d> gravity = std::nullopt);
 
   [[nodiscard]] std::size_t size() const { return n_; }
@@ -142,7 +144,9 @@ class WallDetector {
   [[nodiscard]] std::size_t padded() const {
     return (n_ + kPointPadding - 1) / kPointPadding * kPointPadding;
   }
-  std::uint32_t draw(std::size_t n) { return static_cast<std::uint32_t>(((rng_() >> 32) * n) >> 32); }
+  std::uint32_t draw(std::size_t n) {
+    return static_cast<std::uint32_t>(((rng_() >> 32) * n) >> 32);
+  }
 
   DetectorConfig config_;
   std::size_t capacity_;
