@@ -17,6 +17,9 @@ namespace {
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 constexpr double kMinusInf = -std::numeric_limits<double>::infinity();
+// Share of guided rounds (the rest draw uniformly, a safety net for planes whose points are
+// spread too thinly for neighbourhood sampling).
+constexpr double kGuidedShare = 0.75;
 
 int sample_size(int mode) { return mode == 0 ? 3 : mode == 1 ? 2 : 1; }
 
@@ -88,10 +91,14 @@ WallDetector::WallDetector(std::size_t max_points, DetectorConfig config)
   x_.assign(cap, kNaN);
   y_.assign(cap, kNaN);
   z_.assign(cap, kNaN);
-  nb_index_.assign(cap * config_.neighbours, 0);
-  nb_count_.assign(cap, 0);
   grid_key_.assign(cap, 0);
   grid_order_.assign(cap, 0);
+  std::size_t table = 16;  // the cell table: a power of two, at least twice the points
+  while (table < 2 * cap) table *= 2;
+  cell_key_.assign(table, kEmptyCell);
+  while ((std::size_t{1} << cell_table_bits_) < table) ++cell_table_bits_;
+  cell_start_.assign(table, 0);
+  cell_count_.assign(table, 0);
   scratch_points_.reserve(cap);
   viewpoints_.reserve(64);
   viewpoints_.emplace_back(Eigen::Vector3f::Zero());
@@ -220,11 +227,26 @@ bool WallDetector::orient_and_check(Mode mode, Eigen::Vector3f& n, float& d) con
 bool WallDetector::sample(Mode mode, bool guided, Eigen::Vector3f& n, float& d) {
   const auto point = [this](std::uint32_t i) { return Eigen::Vector3f(x_[i], y_[i], z_[i]); };
   const std::uint32_t i0 = draw(n_);
-  const std::uint32_t k = mode == Mode::kHorizontal ? 0 : nb_count_[i0];
-  const bool use_nb =
-      guided && k >= static_cast<std::uint32_t>(sample_size(static_cast<int>(mode)) - 1);
+  const bool use_cells = guided && mode != Mode::kHorizontal;
   auto other = [&]() -> std::uint32_t {
-    if (use_nb) return nb_index_[std::size_t{i0} * config_.neighbours + draw(k)];
+    if (use_cells) {
+      // NAPSAC-like: a random one of the 3^dim cells around the first point, then a random
+      // point in it; a few retries past empty cells, then a uniform draw.
+      const std::uint32_t k0 = grid_key_[i0];
+      const int ix = static_cast<int>(k0 >> 20), iy = static_cast<int>((k0 >> 10) & 1023u);
+      const int iz = static_cast<int>(k0 & 1023u);
+      const std::uint32_t offsets = grid_planar_ ? 9 : 27;
+      for (int attempt = 0; attempt < 4; ++attempt) {
+        const std::uint32_t o = draw(offsets);
+        const int jx = ix + static_cast<int>(o % 3) - 1,
+                  jy = iy + static_cast<int>((o / 3) % 3) - 1;
+        const int jz = iz + (grid_planar_ ? 0 : static_cast<int>(o / 9) - 1);
+        const std::uint32_t slot = find_cell(jx, jy, jz);
+        if (slot == kNoCell) continue;
+        const std::uint32_t j = grid_order_[cell_start_[slot] + draw(cell_count_[slot])];
+        if (j != i0) return j;
+      }
+    }
     return draw(n_);
   };
   switch (mode) {
@@ -262,13 +284,26 @@ bool WallDetector::sample(Mode mode, bool guided, Eigen::Vector3f& n, float& d) 
   return false;
 }
 
-void WallDetector::build_neighbours(Mode mode) {
-  const std::uint32_t K = config_.neighbours;
-  std::fill_n(nb_count_.begin(), n_, 0);
+std::uint32_t WallDetector::find_cell(int ix, int iy, int iz) const {
+  if (ix < 0 || iy < 0 || iz < 0 || ix > 1023 || iy > 1023 || iz > 1023) return kNoCell;
+  const auto k = static_cast<std::uint32_t>((ix << 20) | (iy << 10) | iz);
+  // Knuth's multiplicative hash: the product's HIGH bits mix every bit of the key.
+  std::uint32_t slot = (k * 2654435761u) >> (32 - cell_table_bits_);
+  const auto mask = static_cast<std::uint32_t>(cell_key_.size() - 1);
+  while (cell_key_[slot] != kEmptyCell) {
+    if (cell_key_[slot] == k) return slot;
+    slot = (slot + 1) & mask;
+  }
+  return kNoCell;
+}
+
+void WallDetector::build_grid(Mode mode) {
   nb_mode_ = mode;
   nb_valid_ = true;
-  if (n_ < 2 || K == 0) return;
-  const bool planar = mode == Mode::kVertical;
+  grid_planar_ = mode == Mode::kVertical;
+  std::fill(cell_key_.begin(), cell_key_.end(), kEmptyCell);
+  if (n_ < 2) return;
+  const bool planar = grid_planar_;
   Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
   Eigen::Vector3f hi = -lo;
   for (std::size_t i = 0; i < n_; ++i) {
@@ -276,87 +311,87 @@ void WallDetector::build_neighbours(Mode mode) {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  // Cell size: about 2K points expected in the 3^dim cells around a point.
+  // Cell size: about 2 * `neighbours` points expected in the 3^dim cells around a point.
   const Eigen::Vector3f ext = (hi - lo).cwiseMax(1e-3f);
   const double dims = planar ? 2.0 : 3.0;
   const double volume = planar ? double{ext.x()} * ext.y() : double{ext.x()} * ext.y() * ext.z();
   double h = config_.neighbour_radius_m > 0.0
                  ? config_.neighbour_radius_m
-                 : std::pow(volume * 2.0 * K / (std::pow(3.0, dims) * static_cast<double>(n_)),
+                 : std::pow(volume * 2.0 * config_.neighbours /
+                                (std::pow(3.0, dims) * static_cast<double>(n_)),
                             1.0 / dims);
   h = std::max(h, 1e-3);
-  const auto cells = [&](float v, float l) {
-    return static_cast<std::int32_t>(std::min(1023.0, std::floor((v - l) / h)));
+  const auto cell = [&](float v, float l) {
+    return static_cast<std::uint32_t>(std::min(1023.0, std::floor((v - l) / h)));
   };
-  const auto key = [](std::int32_t ix, std::int32_t iy, std::int32_t iz) {
-    return static_cast<std::uint32_t>((ix << 20) | (iy << 10) | iz);
+  // Bucket the points by cell (a counting sort through the open-addressing cell table).
+  const auto mask = static_cast<std::uint32_t>(cell_key_.size() - 1);
+  const auto insert = [&](std::uint32_t k) {
+    std::uint32_t slot = (k * 2654435761u) >> (32 - cell_table_bits_);
+    while (cell_key_[slot] != kEmptyCell && cell_key_[slot] != k) slot = (slot + 1) & mask;
+    return slot;
   };
   for (std::size_t i = 0; i < n_; ++i) {
-    grid_key_[i] =
-        key(cells(x_[i], lo.x()), cells(y_[i], lo.y()), planar ? 0 : cells(z_[i], lo.z()));
-    grid_order_[i] = static_cast<std::uint32_t>(i);
-  }
-  std::sort(grid_order_.begin(), grid_order_.begin() + static_cast<std::ptrdiff_t>(n_),
-            [&](std::uint32_t a, std::uint32_t b) { return grid_key_[a] < grid_key_[b]; });
-  // Keys in sorted order, reusing the key array's tail is not possible: look up through order.
-  const auto first_with_key = [&](std::uint32_t k) {
-    return std::lower_bound(
-        grid_order_.begin(), grid_order_.begin() + static_cast<std::ptrdiff_t>(n_), k,
-        [&](std::uint32_t idx, std::uint32_t kk) { return grid_key_[idx] < kk; });
-  };
-  std::array<std::pair<float, std::uint32_t>, 64> heap;
-  const std::uint32_t keep = std::min<std::uint32_t>(K, 64);
-  for (std::size_t i = 0; i < n_; ++i) {
-    const std::int32_t cx = cells(x_[i], lo.x());
-    const std::int32_t cy = cells(y_[i], lo.y());
-    const std::int32_t cz = planar ? 0 : cells(z_[i], lo.z());
-    std::size_t heap_size = 0;
-    const int zr = planar ? 0 : 1;
-    for (int dx = -1; dx <= 1; ++dx) {
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dz = -zr; dz <= zr; ++dz) {
-          const std::int32_t ix = cx + dx, iy = cy + dy, iz = cz + dz;
-          if (ix < 0 || iy < 0 || iz < 0 || ix > 1023 || iy > 1023 || iz > 1023) continue;
-          const std::uint32_t k = key(ix, iy, iz);
-          for (auto it = first_with_key(k);
-               it != grid_order_.begin() + static_cast<std::ptrdiff_t>(n_) && grid_key_[*it] == k;
-               ++it) {
-            const std::uint32_t j = *it;
-            if (j == i) continue;
-            const float ddx = x_[j] - x_[i], ddy = y_[j] - y_[i];
-            const float ddz = planar ? 0.0f : z_[j] - z_[i];
-            const float dist2 = ddx * ddx + ddy * ddy + ddz * ddz;
-            if (heap_size < keep) {
-              heap[heap_size++] = {dist2, j};
-              std::push_heap(heap.begin(), heap.begin() + static_cast<std::ptrdiff_t>(heap_size));
-            } else if (dist2 < heap[0].first) {
-              std::pop_heap(heap.begin(), heap.begin() + static_cast<std::ptrdiff_t>(heap_size));
-              heap[heap_size - 1] = {dist2, j};
-              std::push_heap(heap.begin(), heap.begin() + static_cast<std::ptrdiff_t>(heap_size));
-            }
-          }
-        }
-      }
+    const std::uint32_t k = (cell(x_[i], lo.x()) << 20) | (cell(y_[i], lo.y()) << 10) |
+                            (planar ? 0u : cell(z_[i], lo.z()));
+    grid_key_[i] = k;
+    const std::uint32_t slot = insert(k);
+    if (cell_key_[slot] == kEmptyCell) {
+      cell_key_[slot] = k;
+      cell_count_[slot] = 0;
     }
-    for (std::size_t m = 0; m < heap_size; ++m) nb_index_[i * K + m] = heap[m].second;
-    nb_count_[i] = static_cast<std::uint8_t>(heap_size);
+    ++cell_count_[slot];
+  }
+  std::uint32_t next = 0;
+  for (std::size_t slot = 0; slot < cell_key_.size(); ++slot) {
+    if (cell_key_[slot] == kEmptyCell) continue;
+    cell_start_[slot] = next;
+    next += cell_count_[slot];
+    cell_count_[slot] = 0;  // refilled below
+  }
+  for (std::size_t i = 0; i < n_; ++i) {
+    const std::uint32_t slot = insert(grid_key_[i]);
+    grid_order_[cell_start_[slot] + cell_count_[slot]++] = static_cast<std::uint32_t>(i);
   }
 }
 
 double WallDetector::guided_inlier_fraction(const Eigen::Vector3f& n, float d) const {
+  // The chance that the guided draw from an inlier's neighbourhood is an inlier too: over the
+  // non-empty cells around each inlier (drawn with equal chance), the share of inliers.
   const auto t = static_cast<float>(config_.threshold_m);
   const auto inlier = [&](std::uint32_t i) {
     return std::abs(n.x() * x_[i] + n.y() * y_[i] + n.z() * z_[i] - d) < t;
   };
+  const int zr = grid_planar_ ? 0 : 1;
   double sum = 0.0;
   std::size_t count = 0;
   for (std::uint32_t i = 0; i < n_; ++i) {
-    if (!inlier(i) || nb_count_[i] == 0) continue;
-    std::uint32_t hits = 0;
-    for (std::uint32_t m = 0; m < nb_count_[i]; ++m) {
-      hits += inlier(nb_index_[std::size_t{i} * config_.neighbours + m]) ? 1 : 0;
+    if (!inlier(i)) continue;
+    const std::uint32_t k0 = grid_key_[i];
+    const int ix = static_cast<int>(k0 >> 20), iy = static_cast<int>((k0 >> 10) & 1023u);
+    const int iz = static_cast<int>(k0 & 1023u);
+    double cell_sum = 0.0;
+    int cells = 0;
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -zr; dz <= zr; ++dz) {
+          const std::uint32_t slot = find_cell(ix + dx, iy + dy, iz + dz);
+          if (slot == kNoCell) continue;
+          std::uint32_t hits = 0, others = 0;
+          for (std::uint32_t m = 0; m < cell_count_[slot]; ++m) {
+            const std::uint32_t j = grid_order_[cell_start_[slot] + m];
+            if (j == i) continue;
+            ++others;
+            hits += inlier(j) ? 1 : 0;
+          }
+          if (others == 0) continue;
+          cell_sum += static_cast<double>(hits) / others;
+          ++cells;
+        }
+      }
     }
-    sum += static_cast<double>(hits) / nb_count_[i];
+    if (cells == 0) continue;
+    sum += cell_sum / cells;
     ++count;
   }
   return count ? sum / static_cast<double>(count) : 0.0;
@@ -425,13 +460,38 @@ Detection WallDetector::detect(Mode mode, std::span<const Plane> warm_start) {
   }
 
   const bool guided = config_.sampling == Sampling::kGuided && mode != Mode::kHorizontal;
-  if (guided && (!nb_valid_ || nb_mode_ != mode)) build_neighbours(mode);
+  if (guided && (!nb_valid_ || nb_mode_ != mode)) build_grid(mode);
   const int m = sample_size(static_cast<int>(mode));
   double best_score = kMinusInf;
   Eigen::Vector3f best_n = Eigen::Vector3f::UnitZ();
   float best_d = 0.0f;
   PlaneCounts best_counts;
   std::uint32_t target = config_.max_rounds;
+  // Stopping rule state (see update_target).
+  double p_uniform = 0.0;       // an all-inlier uniform sample of the weakest possible winner
+  double p_guided_model = 0.0;  // the same for a guided sample, from its neighbourhoods
+  double guided_scale = 1.0;    // from the best plane to the weakest possible winner
+  std::uint32_t guided_rounds = 0, guided_hits = 0;
+  const auto t_m = static_cast<float>(config_.threshold_m);
+  const float cos_close = std::cos(5.0f * static_cast<float>(M_PI) / 180.0f);
+  const auto close_to_best = [&](const Eigen::Vector3f& n, float d) {
+    const float c = n.dot(best_n);
+    return std::abs(c) > cos_close && std::abs((c > 0.0f ? d : -d) - best_d) < t_m;
+  };
+
+  // Eq. 2.7 with the probability that one round draws a sample of a plane that could still
+  // win. Uniform rounds: w^m. Guided rounds: the neighbourhood model w * q^(m-1), but never
+  // more than the rate at which guided rounds have actually produced candidates close to the
+  // best plane (scaled to the weakest winner): a local sample can be all inliers and still
+  // tilt away when the noise is large next to the neighbours' spacing.
+  const auto update_target = [&] {
+    double p_good = p_uniform;
+    if (guided) {
+      const double measured = (guided_hits + 0.5) / (guided_rounds + 1.0) * guided_scale;
+      p_good = (1.0 - kGuidedShare) * p_uniform + kGuidedShare * std::min(p_guided_model, measured);
+    }
+    target = rounds_needed(p_good, config_.confidence, config_.max_rounds);
+  };
 
   const auto consider = [&](Eigen::Vector3f n, float d) {
     if (!orient_and_check(mode, n, d)) {
@@ -454,29 +514,33 @@ Detection WallDetector::detect(Mode mode, std::span<const Plane> warm_start) {
       c = c2;
       s = s2;
     }
+    // Evidence about guided rounds counts for the best plane only while it stays the same.
+    if (best_score == kMinusInf || !close_to_best(n, d)) guided_rounds = guided_hits = 0;
     best_score = s;
     best_n = n;
     best_d = d;
     best_counts = c;
-    // Eq. 2.7, for the smallest inlier ratio a plane could have and still beat this score:
-    // every score here is at most N_in (log N_in for B-RANSAC), so a winner has N_in above
-    // it. With plain RANSAC that is the best's own ratio; with backlier-aware scores it is
-    // lower, so a decoy found early (a table in front of the wall) does not end the search.
+    // The weakest plane that could still beat this score: every score here is at most N_in
+    // (B-RANSAC: see binomial_min_inliers). With plain RANSAC that is the best's own ratio;
+    // with backlier-aware scores it is lower, so a decoy found first (a table in front of the
+    // wall) does not end the search.
     const double w_best = static_cast<double>(c.inliers) / static_cast<double>(n_);
     const double n_min = config_.method == ScoreMethod::kBinomial
                              ? binomial_min_inliers(s, rho_for_binomial(), n_)
                              : s;
     const double w =
         std::clamp(n_min / static_cast<double>(n_), 1.0 / static_cast<double>(n_), w_best);
-    // Uniform rounds draw m inliers with probability w^m; guided rounds with w * q^(m-1), q
-    // the fraction of an inlier's neighbours that are inliers, measured on the best plane and
-    // scaled down with the inlier count (a sparser plane has sparser neighbourhoods).
-    double p_good = std::pow(w, m);
+    p_uniform = std::pow(w, m);
     if (guided) {
+      // q: the fraction of an inlier's neighbours that are inliers, measured on the best
+      // plane and scaled down with the inlier count (a sparser plane, sparser neighbourhoods).
       const double q = guided_inlier_fraction(n, d) * (w / w_best);
-      p_good = 0.5 * p_good + 0.5 * w * std::pow(q, m - 1);
+      p_guided_model = w * std::pow(q, m - 1);
+      // What guided rounds showed on the best plane says little about a much sparser one
+      // (its neighbourhoods hold fewer of its own points): the credit falls off steeply.
+      guided_scale = std::pow(w / w_best, 2 * m);
     }
-    target = rounds_needed(p_good, config_.confidence, config_.max_rounds);
+    update_target();
   };
 
   for (const Plane& p : warm_start) {
@@ -488,11 +552,17 @@ Detection WallDetector::detect(Mode mode, std::span<const Plane> warm_start) {
   std::uint32_t round = 0;
   for (; round < config_.max_rounds; ++round) {
     if (round >= config_.min_rounds && round >= target) break;
+    const bool guided_round = guided && (round & 3u) != 0;  // 3 of 4 rounds: kGuidedShare
     Eigen::Vector3f n;
     float d = 0.0f;
-    if (!sample(mode, guided && (round & 1u), n, d)) {
+    if (!sample(mode, guided_round, n, d)) {
       ++best.candidates_skipped;
       continue;
+    }
+    if (guided_round && best_score != kMinusInf) {
+      ++guided_rounds;
+      guided_hits += close_to_best(n, d) ? 1 : 0;
+      if ((guided_rounds & 15u) == 0) update_target();
     }
     consider(n, d);
   }

@@ -15,11 +15,11 @@
 ///
 /// Rounds adapt to the best candidate's inlier ratio (eq. 2.7) for the configured confidence,
 /// up to max_rounds. Guided sampling draws the 2nd (and 3rd) point of a sample from the first
-/// one's k nearest neighbours (NAPSAC-like) in every other round; the stopping rule then uses
-/// the all-inlier probability of that mixed sampler, with the neighbours' inlier fraction
-/// measured on the best candidate. Walls are surfaces, clutter fills a volume: a wall point's
-/// neighbours are far more often wall points than a random point is. A new best candidate is
-/// refined by local optimisation (least-squares refit on its inliers, re-scored, a few times:
+/// one's neighbourhood (the 3^dim grid cells around it, NAPSAC-like) in 3 of 4 rounds; the stopping
+/// rule then uses the all-inlier probability of that mixed sampler, with the neighbours' inlier
+/// fraction measured on the best candidate. Walls are surfaces, clutter fills a volume: a wall
+/// point's neighbours are far more often wall points than a random point is. A new best candidate
+/// is refined by local optimisation (least-squares refit on its inliers, re-scored, a few times:
 /// LO-RANSAC).
 ///
 /// Memory: every buffer is sized in the constructor (max_points); set_points() and the detect
@@ -58,8 +58,8 @@ struct DetectorConfig {
   double min_viewpoint_distance_m = 0.1;  //!< candidates closer to a viewpoint are skipped
   bool facing_check = true;               //!< 3-D: skip planes not facing view_dir (+-90 deg)
   Eigen::Vector3d view_dir = Eigen::Vector3d::UnitZ();  //!< camera's optical axis (3-D mode)
-  std::uint32_t neighbours = 16;    //!< guided sampling: neighbours kept per point
-  double neighbour_radius_m = 0.0;  //!< 0: derived from the cloud's extent
+  std::uint32_t neighbours = 16;    //!< guided sampling: ~2x this many points per neighbourhood
+  double neighbour_radius_m = 0.0;  //!< grid cell size [m]; 0: derived from the cloud
 };
 
 struct Detection {
@@ -136,7 +136,8 @@ class WallDetector {
   double score_of(const PlaneCounts& c) const;
   PlaneCounts evaluate(const Eigen::Vector3f& n, float d) const;
   bool sample(Mode mode, bool guided, Eigen::Vector3f& n, float& d);
-  void build_neighbours(Mode mode);
+  void build_grid(Mode mode);
+  [[nodiscard]] std::uint32_t find_cell(int ix, int iy, int iz) const;
   double guided_inlier_fraction(const Eigen::Vector3f& n, float d) const;
   bool refit(Mode mode, Eigen::Vector3f& n, float& d) const;
   double rho_for_binomial() const;
@@ -157,10 +158,13 @@ class WallDetector {
   // Working-frame points, SoA, padded with NaN to kPointPadding.
   std::vector<float> x_, y_, z_;
   std::vector<Eigen::Vector3f> viewpoints_;  //!< working frame
-  // Guided sampling: up to `neighbours` neighbour indices per point.
-  std::vector<std::uint32_t> nb_index_;
-  std::vector<std::uint8_t> nb_count_;
+  // Guided sampling: the points bucketed in a uniform grid (3-D, or the ground plane).
   std::vector<std::uint32_t> grid_key_, grid_order_;  //!< scratch for the neighbour grid
+  static constexpr std::uint32_t kEmptyCell = 0xFFFFFFFFu;
+  static constexpr std::uint32_t kNoCell = 0xFFFFFFFFu;
+  std::vector<std::uint32_t> cell_key_, cell_start_, cell_count_;  //!< cell hash table
+  int cell_table_bits_ = 0;
+  bool grid_planar_ = false;
   mutable std::vector<Eigen::Vector3d> scratch_points_;
   Mode nb_mode_ = Mode::k3d;
   bool nb_valid_ = false;
