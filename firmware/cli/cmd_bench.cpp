@@ -21,6 +21,8 @@
 #include <unistd.h>
 #endif
 
+#include <hwy/targets.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -44,9 +46,9 @@ struct BenchArgs {
 
 #if WALLAR_HAVE_BENCHMARK
 
-constexpr std::uint64_t kSeeds = 50;                    // scenes per detection benchmark
-constexpr double kSparseThreshold = 0.03;               // as tests/unit/test_walls.cpp
-const Eigen::Vector3d kGravity(0.0, 9.81, 0.0);         // the scenes' camera frame: y is down
+constexpr std::uint64_t kSeeds = 50;             // scenes per detection benchmark
+constexpr double kSparseThreshold = 0.03;        // as tests/unit/test_walls.cpp
+const Eigen::Vector3d kGravity(0.0, 9.81, 0.0);  // the scenes' camera frame: y is down
 
 // ---- (a) the kernel -------------------------------------------------------------------------
 
@@ -82,15 +84,16 @@ void bm_kernel(benchmark::State& state) {
   std::uint64_t sink = 0;
   for (auto _ : state) {
     const Eigen::Vector4f& p = c.planes[k++ & 63u];
-    const dsp::PlaneCounts r =
-        kSimd ? dsp::score_plane(c.x.data(), c.y.data(), c.z.data(), n, p[0], p[1], p[2], p[3], 0.05f)
-              : dsp::score_plane_scalar(c.x.data(), c.y.data(), c.z.data(), n, p[0], p[1], p[2],
-                                        p[3], 0.05f);
+    const dsp::PlaneCounts r = kSimd ? dsp::score_plane(c.x.data(), c.y.data(), c.z.data(), n, p[0],
+                                                        p[1], p[2], p[3], 0.05f)
+                                     : dsp::score_plane_scalar(c.x.data(), c.y.data(), c.z.data(),
+                                                               n, p[0], p[1], p[2], p[3], 0.05f);
     sink += r.inliers + r.backliers;
     benchmark::DoNotOptimize(sink);
   }
   const auto points = static_cast<double>(n);
-  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * static_cast<std::int64_t>(n));
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) *
+                          static_cast<std::int64_t>(n));
   // CPU time / (points * iterations), in ns: an inverted iteration-invariant rate of points.
   state.counters["ns_per_point_test"] = benchmark::Counter(
       points * 1e-9, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
@@ -160,6 +163,16 @@ void register_wall_benchmarks() {
     benchmark::RegisterBenchmark("walls/kernel/simd", bm_kernel<true>)->Arg(n);
     benchmark::RegisterBenchmark("walls/kernel/scalar", bm_kernel<false>)->Arg(n);
   }
+  // Each SIMD target this CPU runs (e.g. AVX-512, AVX2, SSE4 on x86-64), forced one at a time,
+  // so the AVX2 figure exists on a machine that would dispatch to AVX-512.
+  for (const std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    const std::string name = std::string("walls/kernel/target/") + hwy::TargetName(target);
+    benchmark::RegisterBenchmark(name.c_str(), [target](benchmark::State& st) {
+      hwy::SetSupportedTargetsForTest(target);
+      bm_kernel<true>(st);
+      hwy::SetSupportedTargetsForTest(0);  // back to the CPU's best
+    })->Arg(2048);
+  }
   struct Case {
     const char* name;
     bool two_d;
@@ -173,7 +186,8 @@ void register_wall_benchmarks() {
                         {"walls/detect_3d/uniform", false, dsp::Sampling::kUniform, kSeeds},
                         {"walls/detect_2d/uniform", true, dsp::Sampling::kUniform, 4 * kSeeds}};
   for (const Case& c : cases) {
-    benchmark::RegisterBenchmark(c.name, [c](benchmark::State& st) { bm_detect(st, c.two_d, c.sampling); })
+    benchmark::RegisterBenchmark(c.name,
+                                 [c](benchmark::State& st) { bm_detect(st, c.two_d, c.sampling); })
         ->Iterations(c.iterations)
         ->Unit(benchmark::kMicrosecond);
   }
@@ -207,7 +221,8 @@ int run_bench_walls(const BenchArgs& args) {
   bool console = true;
   for (const std::string& a : args.passthrough) {
     flags.push_back(a);
-    if (a.rfind("--benchmark_format=", 0) == 0 && a != "--benchmark_format=console") console = false;
+    if (a.rfind("--benchmark_format=", 0) == 0 && a != "--benchmark_format=console")
+      console = false;
   }
   std::vector<char*> argv;
   for (std::string& f : flags) argv.push_back(f.data());
@@ -231,8 +246,9 @@ int run_bench_walls(const BenchArgs& args) {
 #else  // !WALLAR_HAVE_BENCHMARK
 
 int run_bench_walls(const BenchArgs& /*args*/) {
-  std::fprintf(stderr, "wallar: error: this build has no benchmarks (configured with "
-                       "WALLAR_BUILD_BENCH=OFF)\n");
+  std::fprintf(stderr,
+               "wallar: error: this build has no benchmarks (configured with "
+               "WALLAR_BUILD_BENCH=OFF)\n");
   return kExitFailure;
 }
 
@@ -245,11 +261,13 @@ void add_bench_command(CLI::App& app, std::function<int()>& run) {
   bench->require_subcommand(1);
   auto args = std::make_shared<BenchArgs>();
   CLI::App* walls = bench->add_subcommand(
-      "walls", "Wall detection: plane kernel (SIMD vs scalar), 3-D and 2-D detection on a sparse "
-               "map, guided vs uniform sampling");
-  walls->add_option("--json", args->json,
-                    "Also write the results as JSON to FILE (--benchmark_out=FILE "
-                    "--benchmark_out_format=json)")
+      "walls",
+      "Wall detection: plane kernel (SIMD vs scalar), 3-D and 2-D detection on a sparse "
+      "map, guided vs uniform sampling");
+  walls
+      ->add_option("--json", args->json,
+                   "Also write the results as JSON to FILE (--benchmark_out=FILE "
+                   "--benchmark_out_format=json)")
       ->option_text("FILE");
   walls->add_option("benchmark_flags", args->passthrough,
                     "Google Benchmark flags, after --, e.g. -- --benchmark_filter=kernel");

@@ -6,6 +6,7 @@
 
 #include "commands.hpp"
 #include "wallar/core/error.hpp"
+#include "wallar/drivers/source/recorder_sink.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/report.hpp"
 #include "wallar/firmware/source_runner.hpp"
@@ -20,18 +21,6 @@ struct RecordArgs {
   double duration_s = 0.0;
   bool json = false;
   ReplayFlags flags;
-};
-
-// The recorder is just another sink: every frame it gets, paired or not, is written.
-class RecorderSink final : public source::SensorSink {
- public:
-  explicit RecorderSink(recording::EurocWriter& writer) : writer_(writer) {}
-  void on_imu(const ImuSample& s) override { writer_.write_imu(s); }
-  void on_stereo(const StereoFrame& f) override { writer_.write_stereo(f); }
-  void on_unpaired(int cam, const CameraFrame& f) override { writer_.write_camera(cam, f); }
-
- private:
-  recording::EurocWriter& writer_;
 };
 
 int run_record_command(const RecordArgs& args) {
@@ -59,7 +48,7 @@ int run_record_command(const RecordArgs& args) {
     throw_input_error(args.out, 0, "already holds a recording (mav0/); refusing to overwrite it");
   }
   recording::EurocWriter writer(args.out, rec.rig());
-  RecorderSink sink(writer);
+  source::RecorderSink sink(writer);
   const source::ReplayStats stats =
       firmware::run_replay(rec, options, sink, stop_requested(), s_to_ns(args.duration_s));
   writer.close();

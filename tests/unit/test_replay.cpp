@@ -7,6 +7,7 @@
 #include <cstring>
 
 #include "test_support.hpp"
+#include "wallar/drivers/source/recorder_sink.hpp"
 #include "wallar/drivers/source/replay_source.hpp"
 #include "wallar/drivers/sync/stereo_pairer.hpp"
 
@@ -162,23 +163,13 @@ TEST(ReplaySource, StopsWhenAsked) {
 
 // The recorder is a sink: replaying the bundled real recording into the writer must give
 // byte-identical CSVs and pixel-identical images.
-class Recorder final : public source::SensorSink {
- public:
-  explicit Recorder(recording::EurocWriter& w) : w_(w) {}
-  void on_imu(const ImuSample& s) override { w_.write_imu(s); }
-  void on_stereo(const StereoFrame& f) override { w_.write_stereo(f); }
-  void on_unpaired(int cam, const CameraFrame& f) override { w_.write_camera(cam, f); }
-
- private:
-  recording::EurocWriter& w_;
-};
 
 TEST(RecordReplay, RoundTripsTheBundledRecordingExactly) {
   TempDir tmp;
   const auto original = recording::read_euroc(bundled_recording());
   {
     recording::EurocWriter writer(tmp.path(), original.rig());
-    Recorder rec(writer);
+    source::RecorderSink rec(writer);
     std::atomic<bool> stop{false};
     (void)source::ReplaySource(original, {.rate = 0.0}).run(rec, stop);
     writer.close();

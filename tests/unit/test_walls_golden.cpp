@@ -72,8 +72,8 @@ TEST(GoldenWalls, SameDetectionsOnEveryArchitecture) {
   compare(golden, now);
 }
 
-// Every SIMD target compiled in and supported by this CPU (on x86-64 e.g. AVX-512, AVX2,
-// SSE4 and the scalar emulation) gives the same detections.
+// Every SIMD target compiled in and supported by this CPU (on x86-64 e.g. AVX-512, AVX2, SSE4
+// and SSSE3; Highway's scalar target cannot be forced on x86) gives the same detections.
 TEST(GoldenWalls, EverySimdTargetOfThisMachineAgrees) {
   const std::string path = std::string(WALLAR_TEST_DATA) + "/golden/walls.json";
   std::ifstream in(path);

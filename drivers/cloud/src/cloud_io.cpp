@@ -28,13 +28,6 @@ namespace {
 // ---------------------------------------------------------------------------------------------
 // Small text helpers
 
-std::string printable(std::string_view s) {
-  std::string out;
-  for (char c : s.substr(0, 32)) out += (c >= 32 && c < 127) ? c : '?';
-  if (s.size() > 32) out += "...";
-  return out;
-}
-
 bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
 
 std::string_view trim(std::string_view s) {

@@ -25,13 +25,6 @@ std::string child_path(const std::string& parent, std::string_view key) {
   return parent + "." + std::string(key);
 }
 
-std::string printable(std::string_view s) {
-  std::string out;
-  for (char c : s.substr(0, 40)) out += (c >= 32 && c < 127) ? c : '?';
-  if (s.size() > 40) out += "...";
-  return out;
-}
-
 }  // namespace
 
 // Builds the tree from libyaml events. Lives in a class so it can reach YamlNode's privates.

@@ -24,13 +24,6 @@ std::string_view trim(std::string_view s) {
   return s;
 }
 
-std::string printable(std::string_view s) {
-  std::string out;
-  for (char c : s.substr(0, 32)) out += (c >= 32 && c < 127) ? c : '?';
-  if (s.size() > 32) out += "...";
-  return out;
-}
-
 }  // namespace
 
 void CsvRow::fail(std::string_view msg) const { throw_input_error(*file, line, msg); }

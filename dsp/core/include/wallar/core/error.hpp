@@ -20,6 +20,15 @@ class InputError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// A bad value quoted in an error message: at most max_chars, non-printable bytes as '?',
+/// so a binary or hostile input cannot garble the one-line error.
+inline std::string printable(std::string_view s, std::size_t max_chars = 40) {
+  std::string out;
+  for (char c : s.substr(0, max_chars)) out += (c >= 32 && c < 127) ? c : '?';
+  if (s.size() > max_chars) out += "...";
+  return out;
+}
+
 /// "path:line: message" (line 0 means the whole file: "path: message").
 [[noreturn]] inline void throw_input_error(std::string_view path, int line, std::string_view msg) {
   std::string text(path);
