@@ -14,7 +14,9 @@ find_package(CLI11 CONFIG REQUIRED)
 find_package(nlohmann_json 3.10 REQUIRED)
 find_package(hwy REQUIRED)  # Highway: portable SIMD with run-time dispatch
 
-set(WALLAR_OPENCV_MODULES core imgproc)
+# calib3d and features2d: on arm64 only their runtime packages (libopencv-*406) can be installed
+# beside the amd64 ones; the headers come from the host's OpenCV packages.
+set(WALLAR_OPENCV_MODULES core imgproc flann features2d calib3d)
 find_package(OpenCV QUIET COMPONENTS ${WALLAR_OPENCV_MODULES})
 if(OpenCV_FOUND)
   set(WALLAR_OPENCV_LIBS ${OpenCV_LIBS})

@@ -13,7 +13,10 @@
 
 #include "commands.hpp"
 #include "wallar/core/error.hpp"
+#include "wallar/drivers/cloud/cloud_io.hpp"
 #include "wallar/dsp/imu/static_init.hpp"
+#include "wallar/dsp/stereo/sparse_stereo.hpp"
+#include "wallar/dsp/walls/room.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/report.hpp"
 #include "wallar/firmware/source_runner.hpp"
@@ -32,20 +35,38 @@ struct RunArgs {
 
 class CollectorSink final : public source::SensorSink {
  public:
-  explicit CollectorSink(std::size_t imu_capacity) { imu.reserve(imu_capacity); }
+  explicit CollectorSink(std::size_t imu_capacity) {
+    imu.reserve(imu_capacity);
+    kept.reserve(8);
+  }
   void on_imu(const ImuSample& s) override {
     if (imu.size() < imu.capacity()) imu.push_back(s);  // never grow on the sensor thread
   }
   void on_stereo(const StereoFrame& f) override {
     if (pairs == 0) first = f;  // a reference, not a copy of the pixels
+    if (pairs % kKeepEvery == 0 && kept.size() < kept.capacity()) kept.push_back(f);
     last_t_ns = f.t_ns;
     ++pairs;
   }
+  static constexpr std::uint64_t kKeepEvery = 5;
   std::vector<ImuSample> imu;
+  std::vector<StereoFrame> kept = std::vector<StereoFrame>();  // pairs for the sparse map
   StereoFrame first;
   TimeNs last_t_ns = 0;
   std::uint64_t pairs = 0;
 };
+
+// Inlier band for the stereo sparse map: depth noise of a 11 cm baseline at 2-4 m is
+// several centimetres.
+constexpr double kMapThresholdM = 0.05;
+
+// The ground-truth state nearest t_ns (the recording must have ground truth).
+const recording::GroundTruthState& gt_near(const recording::EurocRecording& rec, TimeNs t_ns) {
+  return *std::min_element(rec.ground_truth.begin(), rec.ground_truth.end(),
+                           [&](const auto& a, const auto& b) {
+                             return std::llabs(a.t_ns - t_ns) < std::llabs(b.t_ns - t_ns);
+                           });
+}
 
 double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
@@ -125,10 +146,7 @@ int run_run_command(const RunArgs& args) {
     text += buf;
     if (!rec.ground_truth.empty()) {
       // Ground truth nearest the first frame: "up" of the world seen in the body frame.
-      const auto& gt = *std::min_element(
-          rec.ground_truth.begin(), rec.ground_truth.end(), [&](const auto& a, const auto& b) {
-            return std::llabs(a.t_ns - sink.first.t_ns) < std::llabs(b.t_ns - sink.first.t_ns);
-          });
+      const auto& gt = gt_near(rec, sink.first.t_ns);
       const Eigen::Vector3d up_body =
           gt.T_world_body.linear().transpose() * Eigen::Vector3d::UnitZ();
       const double gravity_err = angle_deg(est->mean_accel_m_s2, up_body);
@@ -143,9 +161,86 @@ int run_run_command(const RunArgs& args) {
     }
     summary["imu"] = imu;
   }
+  // The room: until the tracker's map exists (issue 7), a sparse map triangulated from ORB
+  // matches of a few stereo pairs. Pairs are merged only while the IMU says the head is
+  // still (same camera pose); otherwise the first pair alone is used.
+  if (!sink.kept.empty()) {
+    const bool still = est && dsp::is_still(*est);
+    const RigCalibration rig = rec.rig();
+    dsp::SparseStereo stereo(rig);
+    PointCloud map;
+    std::size_t pairs_used = 0;
+    for (const StereoFrame& f : sink.kept) {
+      const PointCloud c = stereo.triangulate(f.left.image, f.right.image);
+      for (std::size_t i = 0; i < c.size(); ++i) map.push_back(c.point(i));
+      ++pairs_used;
+      if (!still) break;
+    }
+    dsp::RoomConfig room_cfg;
+    room_cfg.detector.threshold_m = kMapThresholdM;
+    room_cfg.max_surfaces = 4;
+    // Gravity ("down") in the left camera's frame, from the IMU at rest.
+    const Eigen::Matrix3d R_body_cam = rig.cams[0].T_body_cam.linear();
+    std::optional<Eigen::Vector3d> down_cam;
+    if (est && still) down_cam = R_body_cam.transpose() * (-est->mean_accel_m_s2);
+    room_cfg.gravity = down_cam;
+    dsp::RoomEstimator estimator(map.size());
+    const TimeNs t0 = monotonic_now_ns();
+    const dsp::RoomResult room = estimator.estimate(map, room_cfg);
+    const double time_ms = static_cast<double>(monotonic_now_ns() - t0) * 1e-6;
+    nlohmann::json walls = firmware::to_json(room);
+    walls["time_ms"] = time_ms;
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  "sparse map: %zu points from %zu stereo pairs; %zu surfaces (%s, %u rounds, "
+                  "%.1f ms):\n",
+                  room.points, pairs_used, room.surfaces.size(),
+                  down_cam ? "gravity-aligned" : "3-D", room.rounds, time_ms);
+    text += buf;
+    text += firmware::to_text(room);
+    // The floor's own orientation, fitted freely in 3-D on its inliers, against gravity.
+    for (const auto& s : room.surfaces) {
+      if (s.wall.kind != SurfaceKind::kFloor || !down_cam) continue;
+      std::vector<Eigen::Vector3d> inliers;
+      for (std::size_t i = 0; i < map.size(); ++i) {
+        const Eigen::Vector3d p = map.point(i).cast<double>();
+        if (std::abs(s.wall.plane.signed_distance(p)) < kMapThresholdM) inliers.push_back(p);
+      }
+      const auto free_fit = dsp::fit_plane_least_squares(inliers);
+      if (!free_fit) continue;
+      const Eigen::Vector3d up_cam = -down_cam->normalized();
+      nlohmann::json floor = {
+          {"distance_below_camera_m", s.wall.plane.d * -1.0},
+          {"free_fit_vs_imu_gravity_deg",
+           std::min(angle_deg(free_fit->n, up_cam), angle_deg(-free_fit->n, up_cam))}};
+      std::snprintf(buf, sizeof buf,
+                    "floor %.3f m below the camera; its inliers' free 3-D fit is %.2f deg from "
+                    "IMU gravity",
+                    -s.wall.plane.d, floor["free_fit_vs_imu_gravity_deg"].get<double>());
+      text += buf;
+      if (!rec.ground_truth.empty()) {
+        const Eigen::Vector3d up_cam_gt =
+            R_body_cam.transpose() *
+            (gt_near(rec, sink.first.t_ns).T_world_body.linear().transpose() *
+             Eigen::Vector3d::UnitZ());
+        const double gt_deg =
+            std::min(angle_deg(free_fit->n, up_cam_gt), angle_deg(-free_fit->n, up_cam_gt));
+        floor["free_fit_vs_ground_truth_gravity_deg"] = gt_deg;
+        std::snprintf(buf, sizeof buf, ", %.2f deg from ground-truth gravity", gt_deg);
+        text += buf;
+      }
+      text += "\n";
+      walls["floor_check"] = floor;
+    }
+    std::ofstream(fs::path(args.out) / "walls.json") << walls.dump(2) << "\n";
+    cloud::write_ply_rgb(fs::path(args.out) / "sparse_map.ply", map,
+                         firmware::surface_colours(map, room, kMapThresholdM));
+    summary["walls"] = walls;
+  }
   if (!sink.first.left.image.empty()) {
     save_side_by_side(fs::path(args.out) / "first_stereo_pair.png", sink.first);
-    summary["outputs"] = {"run_summary.json", "first_stereo_pair.png"};
+    summary["outputs"] = {"run_summary.json", "first_stereo_pair.png", "walls.json",
+                          "sparse_map.ply"};
   }
   std::ofstream(fs::path(args.out) / "run_summary.json") << summary.dump(2) << "\n";
   if (args.json) {

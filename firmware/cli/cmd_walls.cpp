@@ -12,6 +12,7 @@
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/cloud/cloud_io.hpp"
 #include "wallar/dsp/walls/room.hpp"
+#include "wallar/firmware/report.hpp"
 
 namespace wallar::cli {
 namespace {
@@ -50,19 +51,6 @@ dsp::ScoreMethod parse_method(const std::string& m) {
   if (m == "msac") return dsp::ScoreMethod::kMsac;
   if (m == "bsf") return dsp::ScoreMethod::kBsf;
   return dsp::ScoreMethod::kBinomial;
-}
-
-// Distinct colours by surface id; gray for points on no surface.
-std::array<std::uint8_t, 3> colour_of(std::uint32_t id) {
-  static constexpr std::array<std::array<std::uint8_t, 3>, 8> kPalette{{{230, 25, 75},
-                                                                        {60, 180, 75},
-                                                                        {0, 130, 200},
-                                                                        {245, 130, 48},
-                                                                        {145, 30, 180},
-                                                                        {70, 240, 240},
-                                                                        {240, 50, 230},
-                                                                        {210, 245, 60}}};
-  return kPalette[(id - 1) % kPalette.size()];
 }
 
 int run_walls_command(const WallsArgs& a) {
@@ -107,42 +95,17 @@ int run_walls_command(const WallsArgs& a) {
   const dsp::RoomResult result = estimator.estimate(cloud, cfg);
   const double time_ms = static_cast<double>(monotonic_now_ns() - t0) * 1e-6;
 
-  nlohmann::json surfaces = nlohmann::json::array();
   std::ostringstream text;
   text << "wallar walls: " << result.points << " points";
-  if (read_stats.non_finite_skipped)
+  if (read_stats.non_finite_skipped) {
     text << " (" << read_stats.non_finite_skipped << " non-finite skipped)";
-  text << ", " << (cfg.gravity ? "2-D (gravity-aligned)" : "3-D") << " " << a.method << ", "
-       << result.rounds << " rounds, " << time_ms << " ms\n";
-  for (const auto& s : result.surfaces) {
-    const Wall& w = s.wall;
-    nlohmann::json extent = nlohmann::json::array();
-    for (std::size_t i = 0; i < w.extent_uv_m.size(); ++i) {
-      const Eigen::Vector3d c = w.corner(i);
-      extent.push_back({c.x(), c.y(), c.z()});
-    }
-    surfaces.push_back({{"id", w.id},
-                        {"kind", std::string(to_string(w.kind))},
-                        {"normal", {w.plane.n.x(), w.plane.n.y(), w.plane.n.z()}},
-                        {"d", w.plane.d},
-                        {"inliers", w.inliers},
-                        {"backliers", w.backliers},
-                        {"score", s.score},
-                        {"rmse_m", s.rmse_m},
-                        {"extent", extent}});
-    char line[256];
-    std::snprintf(line, sizeof line,
-                  "  %-7s id %u: n = (%+.4f, %+.4f, %+.4f), d = %+.4f m, %u inliers, %u backliers, "
-                  "rmse %.4f m\n",
-                  std::string(to_string(w.kind)).c_str(), w.id, w.plane.n.x(), w.plane.n.y(),
-                  w.plane.n.z(), w.plane.d, w.inliers, w.backliers, s.rmse_m);
-    text << line;
   }
-  const nlohmann::json out = {{"surfaces", surfaces},
-                              {"rounds", result.rounds},
-                              {"points", result.points},
-                              {"non_finite_skipped", read_stats.non_finite_skipped},
-                              {"time_ms", time_ms}};
+  text << ", " << (cfg.gravity ? "2-D (gravity-aligned)" : "3-D") << " " << a.method << ", "
+       << result.rounds << " rounds, " << time_ms << " ms\n"
+       << firmware::to_text(result);
+  nlohmann::json out = firmware::to_json(result);
+  out["non_finite_skipped"] = read_stats.non_finite_skipped;
+  out["time_ms"] = time_ms;
   if (a.json == "-") {
     std::cout << out.dump(2) << "\n";
   } else {
@@ -154,17 +117,7 @@ int run_walls_command(const WallsArgs& a) {
     }
   }
   if (!a.ply.empty()) {
-    // Label each point by the first surface (in order of discovery) it lies on.
-    std::vector<std::array<std::uint8_t, 3>> rgb(cloud.size(), {128, 128, 128});
-    for (std::size_t i = 0; i < cloud.size(); ++i) {
-      const Eigen::Vector3d p = cloud.point(i).cast<double>();
-      for (const auto& s : result.surfaces) {
-        if (std::abs(s.wall.plane.signed_distance(p)) < a.threshold_m) {
-          rgb[i] = colour_of(s.wall.id);
-          break;
-        }
-      }
-    }
+    const auto rgb = firmware::surface_colours(cloud, result, a.threshold_m);
     cloud::write_ply_rgb(a.ply, cloud, rgb);
   }
   return kExitOk;

@@ -87,4 +87,65 @@ std::string to_text(const source::ReplayStats& s, DurationNs tolerance_ns) {
   return buf;
 }
 
+nlohmann::json to_json(const dsp::RoomResult& r) {
+  nlohmann::json surfaces = nlohmann::json::array();
+  for (const auto& s : r.surfaces) {
+    const Wall& w = s.wall;
+    nlohmann::json extent = nlohmann::json::array();
+    for (std::size_t i = 0; i < w.extent_uv_m.size(); ++i) {
+      const Eigen::Vector3d c = w.corner(i);
+      extent.push_back({c.x(), c.y(), c.z()});
+    }
+    surfaces.push_back({{"id", w.id},
+                        {"kind", std::string(to_string(w.kind))},
+                        {"normal", {w.plane.n.x(), w.plane.n.y(), w.plane.n.z()}},
+                        {"d", w.plane.d},
+                        {"inliers", w.inliers},
+                        {"backliers", w.backliers},
+                        {"score", s.score},
+                        {"rmse_m", s.rmse_m},
+                        {"extent", extent}});
+  }
+  return {{"surfaces", surfaces}, {"rounds", r.rounds}, {"points", r.points}};
+}
+
+std::string to_text(const dsp::RoomResult& r) {
+  std::string out;
+  for (const auto& s : r.surfaces) {
+    const Wall& w = s.wall;
+    char line[256];
+    std::snprintf(line, sizeof line,
+                  "  %-7s id %u: n = (%+.4f, %+.4f, %+.4f), d = %+.4f m, %u inliers, %u "
+                  "backliers, rmse %.4f m\n",
+                  std::string(to_string(w.kind)).c_str(), w.id, w.plane.n.x(), w.plane.n.y(),
+                  w.plane.n.z(), w.plane.d, w.inliers, w.backliers, s.rmse_m);
+    out += line;
+  }
+  return out;
+}
+
+std::vector<std::array<std::uint8_t, 3>> surface_colours(const PointCloud& cloud,
+                                                         const dsp::RoomResult& r,
+                                                         double threshold_m) {
+  static constexpr std::array<std::array<std::uint8_t, 3>, 8> kPalette{{{230, 25, 75},
+                                                                        {60, 180, 75},
+                                                                        {0, 130, 200},
+                                                                        {245, 130, 48},
+                                                                        {145, 30, 180},
+                                                                        {70, 240, 240},
+                                                                        {240, 50, 230},
+                                                                        {210, 245, 60}}};
+  std::vector<std::array<std::uint8_t, 3>> rgb(cloud.size(), {128, 128, 128});
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3d p = cloud.point(i).cast<double>();
+    for (const auto& s : r.surfaces) {
+      if (std::abs(s.wall.plane.signed_distance(p)) < threshold_m) {
+        rgb[i] = kPalette[(s.wall.id - 1) % kPalette.size()];
+        break;
+      }
+    }
+  }
+  return rgb;
+}
+
 }  // namespace wallar::firmware

@@ -107,6 +107,19 @@ run_sim)
   python3 -c "import json,sys; d=json.load(open('$tmp/out')); sys.exit(0 if d['imu']['gravity_error_vs_ground_truth_deg'] < 1.0 else 1)" || fail "gravity error"
   [ -s "$tmp/out_dir/run_summary.json" ] || fail "no run_summary.json"
   [ -s "$tmp/out_dir/first_stereo_pair.png" ] || fail "no first_stereo_pair.png"
+  [ -s "$tmp/out_dir/sparse_map.ply" ] || fail "no sparse_map.ply"
+  # The real scene: a floor under the camera whose free 3-D fit agrees with ground-truth gravity.
+  python3 - "$tmp/out_dir/walls.json" <<'PY' || fail "walls.json of the real recording"
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d['points'] > 2000, d['points']
+floors = [s for s in d['surfaces'] if s['kind'] == 'floor']
+assert len(floors) == 1, d['surfaces']
+assert 0.5 < -floors[0]['d'] < 1.5, floors[0]['d']
+assert floors[0]['inliers'] > 1000, floors[0]
+assert d['floor_check']['free_fit_vs_ground_truth_gravity_deg'] < 2.0, d['floor_check']
+assert any(s['kind'] == 'wall' for s in d['surfaces'])
+PY
   run run --board "$src/board/rpi5.yaml" --check; expect_rc 0; expect_out "board rpi5"
   printf 'board: {name: x}\nsource: replay\nreplay: {recording: r, sped: 2}\n' >"$tmp/bad.yaml"
   run run --board "$tmp/bad.yaml" --check; expect_rc 2; one_err_line

@@ -5,17 +5,31 @@
 /// Threading: pure functions.
 #pragma once
 
+#include <array>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "wallar/drivers/recording/stream_stats.hpp"
 #include "wallar/drivers/source/replay_source.hpp"
+#include "wallar/dsp/walls/room.hpp"
 
 namespace wallar::firmware {
 
 nlohmann::json to_json(const recording::StreamStats& s);
 nlohmann::json to_json(const recording::RecordingStats& s);
 nlohmann::json to_json(const source::ReplayStats& s, DurationNs tolerance_ns);
+
+/// The `wallar walls` schema: {"surfaces":[{"id","kind","normal","d","inliers","backliers",
+/// "score","rmse_m","extent"}], "rounds", "points"}.
+nlohmann::json to_json(const dsp::RoomResult& r);
+/// One line per surface.
+std::string to_text(const dsp::RoomResult& r);
+/// A colour per point: that of the first surface (in order of discovery) within threshold_m,
+/// gray for points on none.
+std::vector<std::array<std::uint8_t, 3>> surface_colours(const PointCloud& cloud,
+                                                         const dsp::RoomResult& r,
+                                                         double threshold_m);
 
 /// Multi-line text for people, one stream per line.
 std::string to_text(const recording::RecordingStats& s);

@@ -1,0 +1,47 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file sparse_stereo.hpp
+/// @brief A sparse 3-D cloud from one rectified stereo pair: ORB features matched across the
+/// pair along rectified rows and triangulated. A stand-in for the tracker's map (issue 7) so
+/// that walls can be found in real recordings today.
+///
+/// Threading: a SparseStereo is used by one thread; construct once per rig (rectification
+/// maps are computed in the constructor).
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include "wallar/core/calibration.hpp"
+#include "wallar/core/image.hpp"
+#include "wallar/core/point_cloud.hpp"
+
+namespace wallar::dsp {
+
+struct SparseStereoParams {
+  int max_features = 3000;
+  double max_row_error_px = 1.5;  //!< |y_left - y_right| after rectification
+  double min_depth_m = 0.3;
+  double max_depth_m = 8.0;
+  int max_hamming = 50;  //!< ORB descriptor distance
+};
+
+struct SparseStereoStats {
+  std::size_t features_left = 0, features_right = 0, matches = 0, triangulated = 0;
+};
+
+class SparseStereo {
+ public:
+  SparseStereo(const RigCalibration& rig, SparseStereoParams params = {});
+
+  /// Points in the (unrectified) left camera frame: x right, y down, z forward [m].
+  PointCloud triangulate(const Image& left, const Image& right, SparseStereoStats* stats = nullptr);
+
+  [[nodiscard]] double baseline_m() const { return baseline_m_; }
+
+ private:
+  SparseStereoParams params_;
+  cv::Mat map_lx_, map_ly_, map_rx_, map_ry_;
+  cv::Matx33d R1_;  //!< left camera -> rectified left
+  double f_px_ = 0.0, cx_ = 0.0, cy_ = 0.0, baseline_m_ = 0.0;
+};
+
+}  // namespace wallar::dsp
