@@ -5,6 +5,11 @@
 add_library(wallar_build_flags INTERFACE)
 target_compile_options(wallar_build_flags INTERFACE -Wall -Wextra -Werror -Wshadow
                                                     -Wnon-virtual-dtor -Wformat=2)
+# Same arithmetic on every target: GCC fuses a * b + c into an FMA wherever the ISA has one
+# (always on aarch64, never on the x86-64-v2 baseline), so scalar geometry rounds differently
+# and seeded RANSAC runs diverge between the board and the host. Fused multiply-adds stay
+# where the code asks for them (the SIMD kernel's MulAdd).
+target_compile_options(wallar_build_flags INTERFACE -ffp-contract=off)
 # Debug builds catch uninitialised Eigen matrices (STYLE.md 13).
 target_compile_definitions(wallar_build_flags INTERFACE
                            $<$<CONFIG:Debug>:EIGEN_INITIALIZE_MATRICES_BY_NAN>)

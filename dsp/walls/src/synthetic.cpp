@@ -12,9 +12,15 @@ namespace {
 class Scene {
  public:
   explicit Scene(std::uint64_t seed) : rng_(seed) {}
+  // Not std::uniform_real_distribution: its result is implementation-defined (libstdc++ gives
+  // different scenes on x86-64 and aarch64 for the same seed). 53 random bits -> [0, 1).
   double uniform(double lo, double hi) {
-    return std::uniform_real_distribution<double>(lo, hi)(rng_);
+    const double u = static_cast<double>(rng_() >> 11) * 0x1.0p-53;
+    return lo + (hi - lo) * u;
   }
+  // Callers draw z, then y, then x into locals before calling: function arguments are
+  // evaluated in an unspecified order (GCC on x86-64 went right to left, on aarch64 not), so
+  // drawing inside the argument list gave each platform a different scene for one seed.
   void add(double x, double y, double z, PointLabel label) {
     out.cloud.push_back(
         Eigen::Vector3f(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)));
@@ -33,24 +39,33 @@ LabelledCloud make_thesis_scene(const ThesisSceneParams& p) {
   const double half = p.noise_m / 2;
   const double w = p.wall_size_m / 2;
   for (std::size_t i = 0; i < p.wall_points; ++i) {
-    s.add(s.uniform(-w, w), s.uniform(-w, w), p.wall_distance_m + s.uniform(-half, half),
-          PointLabel::kWall);
+    const double z = p.wall_distance_m + s.uniform(-half, half);  // z, y, x: see add()
+    const double y = s.uniform(-w, w);
+    const double x = s.uniform(-w, w);
+    s.add(x, y, z, PointLabel::kWall);
   }
   const double q = p.plane_size_m / 2;
   for (std::size_t i = 0; i < p.plane_points; ++i) {
-    s.add(s.uniform(-q, q), s.uniform(-q, q), p.plane_distance_m + s.uniform(-half, half),
-          PointLabel::kFrontPlane);
+    const double z = p.plane_distance_m + s.uniform(-half, half);  // z, y, x: see add()
+    const double y = s.uniform(-q, q);
+    const double x = s.uniform(-q, q);
+    s.add(x, y, z, PointLabel::kFrontPlane);
   }
   const double rho = std::clamp(p.rho_b, 0.0, 0.95);
   const auto backliers =
       static_cast<std::size_t>(std::lround(rho / (1.0 - rho) * static_cast<double>(p.wall_points)));
   for (std::size_t i = 0; i < backliers; ++i) {
-    s.add(s.uniform(-w, w), s.uniform(-w, w),
-          p.wall_distance_m + half + s.uniform(0.0, p.backlier_depth_m), PointLabel::kBacklier);
+    const double z =
+        p.wall_distance_m + half + s.uniform(0.0, p.backlier_depth_m);  // z, y, x: see add()
+    const double y = s.uniform(-w, w);
+    const double x = s.uniform(-w, w);
+    s.add(x, y, z, PointLabel::kBacklier);
   }
   for (std::size_t i = 0; i < p.outliers; ++i) {
-    s.add(s.uniform(-w, w), s.uniform(-w, w), s.uniform(0.1, p.wall_distance_m - half),
-          PointLabel::kOutlier);
+    const double z = s.uniform(0.1, p.wall_distance_m - half);  // z, y, x: see add()
+    const double y = s.uniform(-w, w);
+    const double x = s.uniform(-w, w);
+    s.add(x, y, z, PointLabel::kOutlier);
   }
   s.out.wall = Plane{-Eigen::Vector3d::UnitZ(), -p.wall_distance_m};
   return std::move(s.out);
@@ -65,16 +80,22 @@ LabelledCloud make_sparse_map(const SparseMapParams& p) {
   const auto back =
       static_cast<std::size_t>(std::lround(rho / (1.0 - rho) * static_cast<double>(wall)));
   for (std::size_t i = 0; i < wall; ++i) {
-    s.add(s.uniform(-2.0, 2.0), s.uniform(-1.5, 1.5), p.wall_distance_m + s.uniform(-half, half),
-          PointLabel::kWall);
+    const double z = p.wall_distance_m + s.uniform(-half, half);  // z, y, x: see add()
+    const double y = s.uniform(-1.5, 1.5);
+    const double x = s.uniform(-2.0, 2.0);
+    s.add(x, y, z, PointLabel::kWall);
   }
   for (std::size_t i = 0; i < back && wall + i < p.points; ++i) {
-    s.add(s.uniform(-2.0, 2.0), s.uniform(-1.5, 1.5),
-          p.wall_distance_m + half + s.uniform(0.0, 1.0), PointLabel::kBacklier);
+    const double z = p.wall_distance_m + half + s.uniform(0.0, 1.0);  // z, y, x: see add()
+    const double y = s.uniform(-1.5, 1.5);
+    const double x = s.uniform(-2.0, 2.0);
+    s.add(x, y, z, PointLabel::kBacklier);
   }
   while (s.out.cloud.size() < p.points) {
-    s.add(s.uniform(-2.0, 2.0), s.uniform(-1.5, 1.5), s.uniform(0.5, p.wall_distance_m - half),
-          PointLabel::kOutlier);
+    const double z = s.uniform(0.5, p.wall_distance_m - half);  // z, y, x: see add()
+    const double y = s.uniform(-1.5, 1.5);
+    const double x = s.uniform(-2.0, 2.0);
+    s.add(x, y, z, PointLabel::kOutlier);
   }
   s.out.wall = Plane{-Eigen::Vector3d::UnitZ(), -p.wall_distance_m};
   return std::move(s.out);
@@ -88,30 +109,53 @@ LabelledCloud make_room_scene(const RoomSceneParams& p) {
   auto& surf = s.out.surfaces;
   // Walls first (front z+, then right x+, back z-, left x-), then floor and ceiling; each
   // normal points into the room, toward the viewpoint at the origin.
-  for (std::size_t i = 0; i < n; ++i)
-    s.add(s.uniform(-hw, hw), s.uniform(top, bottom), hd + s.uniform(-h, h), PointLabel::kWall);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double z = hd + s.uniform(-h, h);  // z, y, x: see add()
+    const double y = s.uniform(top, bottom);
+    const double x = s.uniform(-hw, hw);
+    s.add(x, y, z, PointLabel::kWall);
+  }
   surf.push_back({-Eigen::Vector3d::UnitZ(), -hd});
-  for (std::size_t i = 0; i < n; ++i)
-    s.add(hw + s.uniform(-h, h), s.uniform(top, bottom), s.uniform(-hd, hd),
-          PointLabel::kOtherWall);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double z = s.uniform(-hd, hd);  // z, y, x: see add()
+    const double y = s.uniform(top, bottom);
+    const double x = hw + s.uniform(-h, h);
+    s.add(x, y, z, PointLabel::kOtherWall);
+  }
   surf.push_back({-Eigen::Vector3d::UnitX(), -hw});
-  for (std::size_t i = 0; i < n; ++i)
-    s.add(s.uniform(-hw, hw), s.uniform(top, bottom), -hd + s.uniform(-h, h),
-          PointLabel::kOtherWall);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double z = -hd + s.uniform(-h, h);  // z, y, x: see add()
+    const double y = s.uniform(top, bottom);
+    const double x = s.uniform(-hw, hw);
+    s.add(x, y, z, PointLabel::kOtherWall);
+  }
   surf.push_back({Eigen::Vector3d::UnitZ(), -hd});
-  for (std::size_t i = 0; i < n; ++i)
-    s.add(-hw + s.uniform(-h, h), s.uniform(top, bottom), s.uniform(-hd, hd),
-          PointLabel::kOtherWall);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double z = s.uniform(-hd, hd);  // z, y, x: see add()
+    const double y = s.uniform(top, bottom);
+    const double x = -hw + s.uniform(-h, h);
+    s.add(x, y, z, PointLabel::kOtherWall);
+  }
   surf.push_back({Eigen::Vector3d::UnitX(), -hw});
-  for (std::size_t i = 0; i < n; ++i)
-    s.add(s.uniform(-hw, hw), bottom + s.uniform(-h, h), s.uniform(-hd, hd), PointLabel::kFloor);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double z = s.uniform(-hd, hd);  // z, y, x: see add()
+    const double y = bottom + s.uniform(-h, h);
+    const double x = s.uniform(-hw, hw);
+    s.add(x, y, z, PointLabel::kFloor);
+  }
   surf.push_back({-Eigen::Vector3d::UnitY(), -bottom});  // floor: front is up (-y)
-  for (std::size_t i = 0; i < n; ++i)
-    s.add(s.uniform(-hw, hw), top + s.uniform(-h, h), s.uniform(-hd, hd), PointLabel::kCeiling);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double z = s.uniform(-hd, hd);  // z, y, x: see add()
+    const double y = top + s.uniform(-h, h);
+    const double x = s.uniform(-hw, hw);
+    s.add(x, y, z, PointLabel::kCeiling);
+  }
   surf.push_back({Eigen::Vector3d::UnitY(), top});  // ceiling: front is down (+y)
   for (std::size_t i = 0; i < p.clutter; ++i) {
-    s.add(s.uniform(-hw + 0.3, hw - 0.3), s.uniform(top + 0.3, bottom - 0.3),
-          s.uniform(-hd + 0.3, hd - 0.3), PointLabel::kOutlier);
+    const double z = s.uniform(-hd + 0.3, hd - 0.3);  // z, y, x: see add()
+    const double y = s.uniform(top + 0.3, bottom - 0.3);
+    const double x = s.uniform(-hw + 0.3, hw - 0.3);
+    s.add(x, y, z, PointLabel::kOutlier);
   }
   s.out.wall = surf.front();
   return std::move(s.out);
