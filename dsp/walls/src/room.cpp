@@ -106,8 +106,7 @@ RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& co
     }
     if (!best.found || best.inliers < min_inliers) break;
 
-    detector_.inliers_of(best.plane, inliers_);
-    detector_.remove_inliers(best.plane);
+    detector_.remove_inliers(best.plane, &inliers_);
     RoomSurface surface;
     surface.score = best.score;
     surface.rmse_m = best.rmse_m;

@@ -158,7 +158,7 @@ void WallDetector::set_points(const PointCloud& cloud, std::optional<Eigen::Vect
     ++n_;
   }
   pad();
-  nb_valid_ = false;
+  grid_valid_ = false;
 }
 
 void WallDetector::set_manhattan(std::optional<Eigen::Vector3d> axis, double tolerance_rad) {
@@ -284,22 +284,24 @@ bool WallDetector::sample(Mode mode, bool guided, Eigen::Vector3f& n, float& d) 
   return false;
 }
 
+std::uint32_t WallDetector::probe(std::uint32_t key) const {
+  // Knuth's multiplicative hash: the product's HIGH bits mix every bit of the key. Linear
+  // probing ends at the key's slot or at the empty slot where it would go.
+  std::uint32_t slot = (key * 2654435761u) >> (32 - cell_table_bits_);
+  const auto mask = static_cast<std::uint32_t>(cell_key_.size() - 1);
+  while (cell_key_[slot] != kEmptyCell && cell_key_[slot] != key) slot = (slot + 1) & mask;
+  return slot;
+}
+
 std::uint32_t WallDetector::find_cell(int ix, int iy, int iz) const {
   if (ix < 0 || iy < 0 || iz < 0 || ix > 1023 || iy > 1023 || iz > 1023) return kNoCell;
-  const auto k = static_cast<std::uint32_t>((ix << 20) | (iy << 10) | iz);
-  // Knuth's multiplicative hash: the product's HIGH bits mix every bit of the key.
-  std::uint32_t slot = (k * 2654435761u) >> (32 - cell_table_bits_);
-  const auto mask = static_cast<std::uint32_t>(cell_key_.size() - 1);
-  while (cell_key_[slot] != kEmptyCell) {
-    if (cell_key_[slot] == k) return slot;
-    slot = (slot + 1) & mask;
-  }
-  return kNoCell;
+  const std::uint32_t slot = probe(static_cast<std::uint32_t>((ix << 20) | (iy << 10) | iz));
+  return cell_key_[slot] == kEmptyCell ? kNoCell : slot;
 }
 
 void WallDetector::build_grid(Mode mode) {
-  nb_mode_ = mode;
-  nb_valid_ = true;
+  grid_mode_ = mode;
+  grid_valid_ = true;
   grid_planar_ = mode == Mode::kVertical;
   std::fill(cell_key_.begin(), cell_key_.end(), kEmptyCell);
   if (n_ < 2) return;
@@ -325,17 +327,11 @@ void WallDetector::build_grid(Mode mode) {
     return static_cast<std::uint32_t>(std::min(1023.0, std::floor((v - l) / h)));
   };
   // Bucket the points by cell (a counting sort through the open-addressing cell table).
-  const auto mask = static_cast<std::uint32_t>(cell_key_.size() - 1);
-  const auto insert = [&](std::uint32_t k) {
-    std::uint32_t slot = (k * 2654435761u) >> (32 - cell_table_bits_);
-    while (cell_key_[slot] != kEmptyCell && cell_key_[slot] != k) slot = (slot + 1) & mask;
-    return slot;
-  };
   for (std::size_t i = 0; i < n_; ++i) {
     const std::uint32_t k = (cell(x_[i], lo.x()) << 20) | (cell(y_[i], lo.y()) << 10) |
                             (planar ? 0u : cell(z_[i], lo.z()));
     grid_key_[i] = k;
-    const std::uint32_t slot = insert(k);
+    const std::uint32_t slot = probe(k);
     if (cell_key_[slot] == kEmptyCell) {
       cell_key_[slot] = k;
       cell_count_[slot] = 0;
@@ -350,7 +346,7 @@ void WallDetector::build_grid(Mode mode) {
     cell_count_[slot] = 0;  // refilled below
   }
   for (std::size_t i = 0; i < n_; ++i) {
-    const std::uint32_t slot = insert(grid_key_[i]);
+    const std::uint32_t slot = probe(grid_key_[i]);
     grid_order_[cell_start_[slot] + cell_count_[slot]++] = static_cast<std::uint32_t>(i);
   }
 }
@@ -359,9 +355,7 @@ double WallDetector::guided_inlier_fraction(const Eigen::Vector3f& n, float d) c
   // The chance that the guided draw from an inlier's neighbourhood is an inlier too: over the
   // non-empty cells around each inlier (drawn with equal chance), the share of inliers.
   const auto t = static_cast<float>(config_.threshold_m);
-  const auto inlier = [&](std::uint32_t i) {
-    return std::abs(n.x() * x_[i] + n.y() * y_[i] + n.z() * z_[i] - d) < t;
-  };
+  const auto inlier = [&](std::uint32_t i) { return near_plane(i, n, d, t); };
   const int zr = grid_planar_ ? 0 : 1;
   double sum = 0.0;
   std::size_t count = 0;
@@ -401,7 +395,7 @@ bool WallDetector::refit(Mode mode, Eigen::Vector3f& n, float& d) const {
   const auto t = static_cast<float>(config_.threshold_m);
   scratch_points_.clear();
   for (std::size_t i = 0; i < n_; ++i) {
-    if (std::abs(n.x() * x_[i] + n.y() * y_[i] + n.z() * z_[i] - d) < t) {
+    if (near_plane(i, n, d, t)) {
       scratch_points_.emplace_back(x_[i], y_[i], z_[i]);
     }
   }
@@ -460,7 +454,7 @@ Detection WallDetector::detect(Mode mode, std::span<const Plane> warm_start) {
   }
 
   const bool guided = config_.sampling == Sampling::kGuided && mode != Mode::kHorizontal;
-  if (guided && (!nb_valid_ || nb_mode_ != mode)) build_grid(mode);
+  if (guided && (!grid_valid_ || grid_mode_ != mode)) build_grid(mode);
   const int m = sample_size(static_cast<int>(mode));
   double best_score = kMinusInf;
   Eigen::Vector3f best_n = Eigen::Vector3f::UnitZ();
@@ -608,36 +602,30 @@ Detection WallDetector::detect_horizontal(std::span<const Plane> warm_start) {
   return detect(Mode::kHorizontal, warm_start);
 }
 
-std::size_t WallDetector::remove_inliers(const Plane& plane) {
+std::size_t WallDetector::remove_inliers(const Plane& plane,
+                                         std::vector<Eigen::Vector3d>* removed) {
   const Eigen::Vector3f n = (R_work_input_ * plane.n).cast<float>();
   const auto d = static_cast<float>(plane.d);
   const auto t = static_cast<float>(config_.threshold_m);
+  const Eigen::Matrix3d R_input_work = R_work_input_.transpose();
+  if (removed != nullptr) removed->clear();
   std::size_t kept = 0;
   for (std::size_t i = 0; i < n_; ++i) {
-    if (std::abs(n.x() * x_[i] + n.y() * y_[i] + n.z() * z_[i] - d) < t) continue;
+    if (near_plane(i, n, d, t)) {
+      if (removed != nullptr)
+        removed->push_back(R_input_work * Eigen::Vector3d(x_[i], y_[i], z_[i]));
+      continue;
+    }
     x_[kept] = x_[i];
     y_[kept] = y_[i];
     z_[kept] = z_[i];
     ++kept;
   }
-  const std::size_t removed = n_ - kept;
+  const std::size_t count = n_ - kept;
   n_ = kept;
   pad();
-  nb_valid_ = false;
-  return removed;
-}
-
-void WallDetector::inliers_of(const Plane& plane, std::vector<Eigen::Vector3d>& out) const {
-  out.clear();
-  const Eigen::Vector3f n = (R_work_input_ * plane.n).cast<float>();
-  const auto d = static_cast<float>(plane.d);
-  const auto t = static_cast<float>(config_.threshold_m);
-  const Eigen::Matrix3d R_input_work = R_work_input_.transpose();
-  for (std::size_t i = 0; i < n_; ++i) {
-    if (std::abs(n.x() * x_[i] + n.y() * y_[i] + n.z() * z_[i] - d) < t) {
-      out.push_back(R_input_work * Eigen::Vector3d(x_[i], y_[i], z_[i]));
-    }
-  }
+  grid_valid_ = false;
+  return count;
 }
 
 }  // namespace wallar::dsp

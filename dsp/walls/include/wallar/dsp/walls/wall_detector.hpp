@@ -29,6 +29,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <random>
@@ -116,10 +117,10 @@ class WallDetector {
   /// Best horizontal surface (1-point height samples); needs gravity.
   Detection detect_horizontal(std::span<const Plane> warm_start = {});
 
-  /// Removes the inliers of `plane` from the points still searched; returns how many.
-  std::size_t remove_inliers(const Plane& plane);
-  /// Writes the current points' inliers of `plane` (input frame) to `out` (cleared first).
-  void inliers_of(const Plane& plane, std::vector<Eigen::Vector3d>& out) const;
+  /// Removes the inliers of `plane` from the points still searched; returns how many. With
+  /// `removed`, also hands them back (input frame; the vector is cleared first and allocates
+  /// only if it must grow).
+  std::size_t remove_inliers(const Plane& plane, std::vector<Eigen::Vector3d>* removed = nullptr);
 
   /// For Manhattan constraints: only vertical candidates whose normal is within tol of a
   /// multiple of 90 degrees from `axis` (a horizontal direction, input frame) are accepted.
@@ -138,6 +139,11 @@ class WallDetector {
   bool sample(Mode mode, bool guided, Eigen::Vector3f& n, float& d);
   void build_grid(Mode mode);
   [[nodiscard]] std::uint32_t find_cell(int ix, int iy, int iz) const;
+  [[nodiscard]] std::uint32_t probe(std::uint32_t key) const;
+  /// |n.p_i - d| < t for point i of the working frame.
+  [[nodiscard]] bool near_plane(std::size_t i, const Eigen::Vector3f& n, float d, float t) const {
+    return std::abs(n.x() * x_[i] + n.y() * y_[i] + n.z() * z_[i] - d) < t;
+  }
   double guided_inlier_fraction(const Eigen::Vector3f& n, float d) const;
   bool refit(Mode mode, Eigen::Vector3f& n, float& d) const;
   double rho_for_binomial() const;
@@ -166,8 +172,8 @@ class WallDetector {
   int cell_table_bits_ = 0;
   bool grid_planar_ = false;
   mutable std::vector<Eigen::Vector3d> scratch_points_;
-  Mode nb_mode_ = Mode::k3d;
-  bool nb_valid_ = false;
+  Mode grid_mode_ = Mode::k3d;
+  bool grid_valid_ = false;
   std::mt19937_64 rng_;
   std::optional<Eigen::Vector3f> manhattan_axis_;
   double manhattan_tol_rad_ = 0.0;
