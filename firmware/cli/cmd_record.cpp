@@ -52,18 +52,17 @@ int run_record_command(const RecordArgs& args) {
   const source::ReplayStats stats =
       firmware::run_replay(rec, options, sink, stop_requested(), s_to_ns(args.duration_s));
   writer.close();
-  const DurationNs tolerance = source::ReplaySource(rec, options).pair_tolerance_ns();
   if (args.json) {
     std::cout << nlohmann::json{{"out", args.out},
                                 {"imu_rows", writer.imu_written()},
                                 {"cam_rows", {writer.frames_written(0), writer.frames_written(1)}},
-                                {"replay", firmware::to_json(stats, tolerance)}}
+                                {"replay", firmware::to_json(stats)}}
                      .dump(2)
               << "\n";
   } else {
     std::cout << "recorded " << writer.imu_written() << " IMU rows, " << writer.frames_written(0)
               << " + " << writer.frames_written(1) << " frames to " << args.out << "\n"
-              << firmware::to_text(stats, tolerance);
+              << firmware::to_text(stats);
   }
   return kExitOk;
 }

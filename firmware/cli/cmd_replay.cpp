@@ -41,17 +41,15 @@ int run_replay_command(const ReplayArgs& args) {
   }
   CountingSink sink;
   const source::ReplayStats played = firmware::run_replay(rec, options, sink, stop_requested());
-  const DurationNs tolerance = source::ReplaySource(rec, options).pair_tolerance_ns();
 
   if (args.json) {
-    nlohmann::json out = {{"recording", args.recording},
-                          {"replay", firmware::to_json(played, tolerance)}};
+    nlohmann::json out = {{"recording", args.recording}, {"replay", firmware::to_json(played)}};
     if (args.stats) out["streams"] = firmware::to_json(recording::recording_stats(rec));
     std::cout << out.dump(2) << "\n";
   } else {
     std::cout << "recording " << args.recording << "\n";
     if (args.stats) std::cout << firmware::to_text(recording::recording_stats(rec));
-    std::cout << firmware::to_text(played, tolerance);
+    std::cout << firmware::to_text(played);
   }
   return played.stopped ? kExitInterrupted : kExitOk;
 }

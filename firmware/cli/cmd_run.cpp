@@ -115,12 +115,11 @@ int run_run_command(const RunArgs& args) {
             << "\n";
   CollectorSink sink(rec.imu.size());
   const source::ReplayStats stats = firmware::run_replay(rec, options, sink, stop_requested());
-  const DurationNs tolerance = source::ReplaySource(rec, options).pair_tolerance_ns();
 
   nlohmann::json summary = {{"board", board.name},
                             {"recording", board.replay.recording.string()},
-                            {"replay", firmware::to_json(stats, tolerance)}};
-  std::string text = firmware::to_text(stats, tolerance);
+                            {"replay", firmware::to_json(stats)}};
+  std::string text = firmware::to_text(stats);
 
   // Gravity and gyro bias over the span of the camera frames.
   const auto est = dsp::estimate_static_imu(sink.imu, sink.first.t_ns, sink.last_t_ns);

@@ -29,7 +29,7 @@ nlohmann::json to_json(const recording::RecordingStats& s) {
           {"ground_truth_rows", s.ground_truth_rows}};
 }
 
-nlohmann::json to_json(const source::ReplayStats& s, DurationNs tolerance_ns) {
+nlohmann::json to_json(const source::ReplayStats& s) {
   return {{"imu_samples", s.imu_samples},
           {"frames", {s.frames[0], s.frames[1]}},
           {"pairs_delivered", s.pairs_delivered},
@@ -37,7 +37,7 @@ nlohmann::json to_json(const source::ReplayStats& s, DurationNs tolerance_ns) {
           {"pairing",
            {{"pairs", s.pairing.pairs},
             {"unpaired", {s.pairing.unpaired[0], s.pairing.unpaired[1]}},
-            {"tolerance_ms", static_cast<double>(tolerance_ns) * 1e-6},
+            {"tolerance_ms", static_cast<double>(s.pair_tolerance_ns) * 1e-6},
             {"mean_abs_skew_ms", s.pairing.mean_abs_skew_ns() * 1e-6},
             {"max_abs_skew_ms", static_cast<double>(s.pairing.max_abs_skew_ns) * 1e-6}}},
           {"first_t_ns", s.first_t_ns},
@@ -68,7 +68,7 @@ std::string to_text(const recording::RecordingStats& s) {
   return out;
 }
 
-std::string to_text(const source::ReplayStats& s, DurationNs tolerance_ns) {
+std::string to_text(const source::ReplayStats& s) {
   char buf[512];
   std::snprintf(
       buf, sizeof buf,
@@ -77,7 +77,8 @@ std::string to_text(const source::ReplayStats& s, DurationNs tolerance_ns) {
       "skew mean %.3f ms max %.3f ms; delivered %llu, skipped %llu%s\n",
       static_cast<unsigned long long>(s.imu_samples), static_cast<unsigned long long>(s.frames[0]),
       static_cast<unsigned long long>(s.frames[1]), ns_to_s(s.wall_time_ns),
-      static_cast<double>(s.max_lateness_ns) * 1e-6, static_cast<double>(tolerance_ns) * 1e-6,
+      static_cast<double>(s.max_lateness_ns) * 1e-6,
+      static_cast<double>(s.pair_tolerance_ns) * 1e-6,
       static_cast<unsigned long long>(s.pairing.pairs),
       static_cast<unsigned long long>(s.pairing.unpaired[0]),
       static_cast<unsigned long long>(s.pairing.unpaired[1]), s.pairing.mean_abs_skew_ns() * 1e-6,

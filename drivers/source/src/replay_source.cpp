@@ -37,6 +37,7 @@ ReplaySource::ReplaySource(const recording::EurocRecording& recording, ReplayOpt
 
 ReplayStats ReplaySource::run(SensorSink& sink, const std::atomic<bool>& stop) {
   ReplayStats stats;
+  stats.pair_tolerance_ns = tolerance_ns_;
   sync::StereoPairer pairer(tolerance_ns_);
   const auto& imu = rec_.imu;
   const auto& f0 = rec_.cams[0].frames;

@@ -18,7 +18,7 @@ namespace wallar::firmware {
 
 nlohmann::json to_json(const recording::StreamStats& s);
 nlohmann::json to_json(const recording::RecordingStats& s);
-nlohmann::json to_json(const source::ReplayStats& s, DurationNs tolerance_ns);
+nlohmann::json to_json(const source::ReplayStats& s);
 
 /// The `wallar walls` schema: {"surfaces":[{"id","kind","normal","d","inliers","backliers",
 /// "score","rmse_m","extent"}], "rounds", "points"}.
@@ -33,6 +33,6 @@ std::vector<std::array<std::uint8_t, 3>> surface_colours(const PointCloud& cloud
 
 /// Multi-line text for people, one stream per line.
 std::string to_text(const recording::RecordingStats& s);
-std::string to_text(const source::ReplayStats& s, DurationNs tolerance_ns);
+std::string to_text(const source::ReplayStats& s);
 
 }  // namespace wallar::firmware

@@ -35,6 +35,7 @@ struct ReplayStats {
   std::uint64_t pairs_delivered = 0;
   std::uint64_t pairs_skipped = 0;  //!< by the skip option
   sync::PairingStats pairing;
+  DurationNs pair_tolerance_ns = 0;  //!< the pairing tolerance used
   TimeNs first_t_ns = 0;
   TimeNs last_t_ns = 0;
   DurationNs wall_time_ns = 0;     //!< how long the replay took
