@@ -50,7 +50,7 @@ class CollectorSink final : public source::SensorSink {
   }
   static constexpr std::uint64_t kKeepEvery = 5;
   std::vector<ImuSample> imu;
-  std::vector<StereoFrame> kept = std::vector<StereoFrame>();  // pairs for the sparse map
+  std::vector<StereoFrame> kept;  // pairs for the sparse map
   StereoFrame first;
   TimeNs last_t_ns = 0;
   std::uint64_t pairs = 0;
@@ -70,6 +70,11 @@ const recording::GroundTruthState& gt_near(const recording::EurocRecording& rec,
 
 double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+// Angle between the lines along a and b (a fitted normal has no preferred sign).
+double axis_angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::min(angle_deg(a, b), angle_deg(-a, b));
 }
 
 // Side by side, as the headset's display shows the two eyes.
@@ -208,10 +213,8 @@ int run_run_command(const RunArgs& args) {
       const auto free_fit = dsp::fit_plane_least_squares(inliers);
       if (!free_fit) continue;
       const Eigen::Vector3d up_cam = -down_cam->normalized();
-      nlohmann::json floor = {
-          {"distance_below_camera_m", s.wall.plane.d * -1.0},
-          {"free_fit_vs_imu_gravity_deg",
-           std::min(angle_deg(free_fit->n, up_cam), angle_deg(-free_fit->n, up_cam))}};
+      nlohmann::json floor = {{"distance_below_camera_m", s.wall.plane.d * -1.0},
+                              {"free_fit_vs_imu_gravity_deg", axis_angle_deg(free_fit->n, up_cam)}};
       std::snprintf(buf, sizeof buf,
                     "floor %.3f m below the camera; its inliers' free 3-D fit is %.2f deg from "
                     "IMU gravity",
@@ -222,8 +225,7 @@ int run_run_command(const RunArgs& args) {
             R_body_cam.transpose() *
             (gt_near(rec, sink.first.t_ns).T_world_body.linear().transpose() *
              Eigen::Vector3d::UnitZ());
-        const double gt_deg =
-            std::min(angle_deg(free_fit->n, up_cam_gt), angle_deg(-free_fit->n, up_cam_gt));
+        const double gt_deg = axis_angle_deg(free_fit->n, up_cam_gt);
         floor["free_fit_vs_ground_truth_gravity_deg"] = gt_deg;
         std::snprintf(buf, sizeof buf, ", %.2f deg from ground-truth gravity", gt_deg);
         text += buf;
