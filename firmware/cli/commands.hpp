@@ -29,6 +29,7 @@ void add_replay_command(CLI::App& app, std::function<int()>& run);
 void add_record_command(CLI::App& app, std::function<int()>& run);
 void add_bench_command(CLI::App& app, std::function<int()>& run);
 void add_walls_command(CLI::App& app, std::function<int()>& run);
+void add_eval_command(CLI::App& app, std::function<int()>& run);
 
 }  // namespace wallar::cli
 

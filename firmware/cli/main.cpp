@@ -45,6 +45,7 @@ int main(int argc, char** argv) {
   add_record_command(app, run);
   add_bench_command(app, run);
   add_walls_command(app, run);
+  add_eval_command(app, run);
 
   try {
     app.parse(argc, argv);
