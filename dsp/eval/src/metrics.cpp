@@ -24,8 +24,7 @@ double projected_inlier_rmse(std::span<const Eigen::Vector3d> inliers, const Pla
 PlaneError plane_error(const Plane& estimated, const Plane& truth) {
   const double cos_angle = std::clamp(std::abs(estimated.n.dot(truth.n)), 0.0, 1.0);
   const Eigen::Vector3d foot = truth.n * truth.d;
-  return PlaneError{std::acos(cos_angle) * 180.0 / M_PI,
-                    std::abs(estimated.signed_distance(foot))};
+  return PlaneError{std::acos(cos_angle) * 180.0 / M_PI, std::abs(estimated.signed_distance(foot))};
 }
 
 std::string SuccessCriterion::describe() const {

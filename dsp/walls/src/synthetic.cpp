@@ -3,6 +3,7 @@
 /// @brief Labelled synthetic scenes for tests, evaluation and benchmarks.
 #include "wallar/dsp/walls/synthetic.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -67,8 +68,68 @@ LabelledCloud make_thesis_scene(const ThesisSceneParams& p) {
     const double x = s.uniform(-w, w);
     s.add(x, y, z, PointLabel::kOutlier);
   }
+  // A window: points outside, seen through the opening, so they lie in its viewing cone.
+  const double ww = p.window_size_m / 2;
+  for (std::size_t i = 0; i < p.window_points; ++i) {
+    const double z = p.wall_distance_m + 0.5 +
+                     s.uniform(0.0, std::max(0.0, p.window_depth_m - 0.5));  // z, v, u: see add()
+    const double v = s.uniform(-ww, ww);
+    const double u = p.window_x_m + s.uniform(-ww, ww);
+    const double scale = z / p.wall_distance_m;  // through (u, v) on the wall, from the origin
+    s.add(u * scale, v * scale, z, PointLabel::kWindow);
+  }
+  // Boxes: a size, a footprint between the front plane and the wall, and points on the three
+  // faces a viewer at the origin sees (front z-, top y-, the side facing the origin in x).
+  if (p.clutter_points > 0) {
+    const std::size_t objects = std::max<std::size_t>(1, p.clutter_objects);
+    for (std::size_t k = 0; k < objects; ++k) {
+      const double size = s.uniform(0.3, 0.8);
+      const double z0 = s.uniform(p.plane_distance_m + 0.2, p.wall_distance_m - size - 0.1);
+      const double x0 = s.uniform(-w, w - size);
+      const double y_floor = w;  // boxes stand on the wall's bottom edge line (y down)
+      const std::size_t n = p.clutter_points / objects + (k < p.clutter_points % objects ? 1 : 0);
+      for (std::size_t i = 0; i < n; ++i) {
+        const double face = s.uniform(0.0, 3.0);  // then a, b: see add()
+        const double a = s.uniform(0.0, size);
+        const double b = s.uniform(0.0, size);
+        const double jitter = s.uniform(-half, half);
+        if (face < 1.0) {  // front face, z = z0
+          s.add(x0 + a, y_floor - b, z0 + jitter, PointLabel::kClutter);
+        } else if (face < 2.0) {  // top face, y = y_floor - size
+          s.add(x0 + a, y_floor - size + jitter, z0 + b, PointLabel::kClutter);
+        } else {  // the side nearer x = 0
+          const double side_x = x0 + size / 2 > 0 ? x0 : x0 + size;
+          s.add(side_x + jitter, y_floor - a, z0 + b, PointLabel::kClutter);
+        }
+      }
+    }
+  }
   s.out.wall = Plane{-Eigen::Vector3d::UnitZ(), -p.wall_distance_m};
   return std::move(s.out);
+}
+
+const char* label_name(PointLabel label) {
+  switch (label) {
+    case PointLabel::kWall:
+      return "wall";
+    case PointLabel::kFrontPlane:
+      return "front_plane";
+    case PointLabel::kBacklier:
+      return "backlier";
+    case PointLabel::kOutlier:
+      return "outlier";
+    case PointLabel::kFloor:
+      return "floor";
+    case PointLabel::kCeiling:
+      return "ceiling";
+    case PointLabel::kOtherWall:
+      return "other_wall";
+    case PointLabel::kWindow:
+      return "window";
+    case PointLabel::kClutter:
+      return "clutter";
+  }
+  return "unknown";
 }
 
 LabelledCloud make_sparse_map(const SparseMapParams& p) {

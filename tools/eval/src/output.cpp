@@ -100,8 +100,8 @@ std::optional<fs::path> OutputDir::plot(const std::string& name, std::string_vie
   std::string gp = "# " + name + ".png, drawn by `wallar eval`. Redraw from this folder with:\n" +
                    "#   gnuplot " + name + ".gp\n";
   gp += "if (!exists(\"outfile\")) outfile = \"" + name + ".png\"\n";
-  gp += "set terminal pngcairo size " + std::to_string(width_px) + "," +
-        std::to_string(height_px) + " font \"DejaVu Sans,11\" noenhanced\n";
+  gp += "set terminal pngcairo size " + std::to_string(width_px) + "," + std::to_string(height_px) +
+        " font \"DejaVu Sans,11\" noenhanced\n";
   gp += "set output outfile\nset datafile separator \",\"\n";
   gp += script;
   write(name + ".gp", gp);
@@ -117,8 +117,8 @@ std::optional<fs::path> OutputDir::plot(const std::string& name, std::string_vie
   posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
   const char* argv[] = {"gnuplot", "-e", define.c_str(), script_name.c_str(), nullptr};
   pid_t pid = 0;
-  const int err = posix_spawnp(&pid, "gnuplot", &actions, nullptr,
-                               const_cast<char* const*>(argv), environ);
+  const int err =
+      posix_spawnp(&pid, "gnuplot", &actions, nullptr, const_cast<char* const*>(argv), environ);
   posix_spawn_file_actions_destroy(&actions);
   if (err != 0) {
     throw std::runtime_error("cannot run gnuplot for " + (dir_ / name).string() +

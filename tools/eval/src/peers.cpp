@@ -45,7 +45,8 @@ PeerFit fit_plane_peer(Peer peer, const PointCloud& cloud, double threshold_m,
     open3d::utility::random::Seed(static_cast<int>(seed & 0x7FFFFFFF));
     open3d::geometry::PointCloud pc;
     pc.points_.reserve(cloud.size());
-    for (std::size_t i = 0; i < cloud.size(); ++i) pc.points_.push_back(cloud.point(i).cast<double>());
+    for (std::size_t i = 0; i < cloud.size(); ++i)
+      pc.points_.push_back(cloud.point(i).cast<double>());
     if (pc.points_.size() < 3) return {};
     const auto [model, inliers] =
         pc.SegmentPlane(threshold_m, 3, static_cast<int>(max_rounds), probability);

@@ -25,7 +25,12 @@ enum class PointLabel : std::uint8_t {
   kFloor,
   kCeiling,
   kOtherWall,  //!< room scenes: the walls other than the first
+  kWindow,     //!< seen through a window in the wall: a patch of backliers
+  kClutter,    //!< furniture in front of the wall (boxes)
 };
+
+/// "wall", "front_plane", "backlier", ... (for files and plots).
+const char* label_name(PointLabel label);
 
 struct LabelledCloud {
   PointCloud cloud;
@@ -48,8 +53,21 @@ struct ThesisSceneParams {
   double plane_distance_m = 1.0;
   double plane_size_m = 1.0;
   double backlier_depth_m = 1.0;  //!< backliers spread this far behind the wall
+  /// What the thesis left open (§5): a window, i.e. points seen through a window_size_m square
+  /// opening centred at (window_x_m, 0) on the wall, from 0.5 m to window_depth_m behind it
+  /// (the wall's own points are kept: the window is a patch of backliers, not a hole).
+  std::size_t window_points = 0;
+  double window_size_m = 1.0;
+  double window_x_m = 1.0;
+  double window_depth_m = 3.0;
+  /// Clutter: clutter_points on the visible faces (front, top, side) of clutter_objects
+  /// 0.3-0.8 m boxes standing between the front plane and the wall.
+  std::size_t clutter_points = 0;
+  std::size_t clutter_objects = 4;
   std::uint64_t seed = 1;
 };
+/// Points are drawn in label order (wall, plane, backliers, outliers, window, clutter), so
+/// adding windows or clutter leaves the rest of a seed's scene unchanged.
 LabelledCloud make_thesis_scene(const ThesisSceneParams& p);
 
 /// A sparse map as a tracker makes it: `points` in all, `wall_fraction` of them on a 4 x 3 m
