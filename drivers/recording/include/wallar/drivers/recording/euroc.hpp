@@ -52,6 +52,11 @@ struct GroundTruthState {
   Eigen::Vector3d vel_world_m_s = Eigen::Vector3d::Zero();
   Eigen::Vector3d gyro_bias_rad_s = Eigen::Vector3d::Zero();
   Eigen::Vector3d accel_bias_m_s2 = Eigen::Vector3d::Zero();
+
+  /// The world's "up" (+z, against gravity) in the body frame.
+  [[nodiscard]] Eigen::Vector3d up_body() const {
+    return T_world_body.linear().transpose() * Eigen::Vector3d::UnitZ();
+  }
 };
 
 struct EurocRecording {
@@ -65,6 +70,10 @@ struct EurocRecording {
     return RigCalibration{{cams[0].calib, cams[1].calib}, imu_calib};
   }
 };
+
+/// The ground-truth state nearest t_ns (the earlier one on a tie), or null when the recording
+/// has no ground truth.
+const GroundTruthState* nearest_ground_truth(const EurocRecording& rec, TimeNs t_ns);
 
 struct ReadOptions {
   /// Check that every image file named in data.csv exists (stat only, no decoding).
