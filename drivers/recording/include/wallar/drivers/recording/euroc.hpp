@@ -107,6 +107,9 @@ Image load_png_gray(const std::filesystem::path& path, int expected_width = 0,
                     int expected_height = 0);
 /// Writes an 8-bit gray image as PNG; throws InputError on failure.
 void save_png_gray(const std::filesystem::path& path, const Image& image);
+/// Encodes an 8-bit RGB image as PNG in memory (for writers that place the file themselves,
+/// e.g. atomically); throws InputError naming `name` on failure.
+std::vector<std::uint8_t> encode_png_rgb(const Image& image, const std::string& name);
 
 /// Writes a recording in the EuRoC layout as samples arrive. Every image is written to a
 /// temporary name, then renamed, before its CSV row is appended and flushed, so a recording
