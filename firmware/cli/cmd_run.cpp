@@ -17,6 +17,7 @@
 #include "wallar/dsp/imu/static_init.hpp"
 #include "wallar/dsp/stereo/sparse_stereo.hpp"
 #include "wallar/dsp/walls/room.hpp"
+#include "wallar/dsp/walls/room_check.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/report.hpp"
 #include "wallar/firmware/source_runner.hpp"
@@ -59,23 +60,6 @@ class CollectorSink final : public source::SensorSink {
 // Inlier band for the stereo sparse map: depth noise of a 11 cm baseline at 2-4 m is
 // several centimetres.
 constexpr double kMapThresholdM = 0.05;
-
-// The ground-truth state nearest t_ns (the recording must have ground truth).
-const recording::GroundTruthState& gt_near(const recording::EurocRecording& rec, TimeNs t_ns) {
-  return *std::min_element(rec.ground_truth.begin(), rec.ground_truth.end(),
-                           [&](const auto& a, const auto& b) {
-                             return std::llabs(a.t_ns - t_ns) < std::llabs(b.t_ns - t_ns);
-                           });
-}
-
-double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
-}
-
-// Angle between the lines along a and b (a fitted normal has no preferred sign).
-double axis_angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::min(angle_deg(a, b), angle_deg(-a, b));
-}
 
 // Side by side, as the headset's display shows the two eyes.
 void save_side_by_side(const fs::path& path, const StereoFrame& f) {
@@ -148,13 +132,10 @@ int run_run_command(const RunArgs& args) {
                   est->mean_accel_m_s2.y(), est->mean_accel_m_s2.z(), est->mean_accel_m_s2.norm(),
                   est->gyro_bias_rad_s.x(), est->gyro_bias_rad_s.y(), est->gyro_bias_rad_s.z());
     text += buf;
-    if (!rec.ground_truth.empty()) {
+    if (const auto* gt = recording::nearest_ground_truth(rec, sink.first.t_ns)) {
       // Ground truth nearest the first frame: "up" of the world seen in the body frame.
-      const auto& gt = gt_near(rec, sink.first.t_ns);
-      const Eigen::Vector3d up_body =
-          gt.T_world_body.linear().transpose() * Eigen::Vector3d::UnitZ();
-      const double gravity_err = angle_deg(est->mean_accel_m_s2, up_body);
-      const double bias_err = (est->gyro_bias_rad_s - gt.gyro_bias_rad_s).norm();
+      const double gravity_err = dsp::angle_deg(est->mean_accel_m_s2, gt->up_body());
+      const double bias_err = (est->gyro_bias_rad_s - gt->gyro_bias_rad_s).norm();
       imu["gravity_error_vs_ground_truth_deg"] = gravity_err;
       imu["gyro_bias_error_vs_ground_truth_rad_s"] = bias_err;
       std::snprintf(
@@ -172,14 +153,8 @@ int run_run_command(const RunArgs& args) {
     const bool still = est && dsp::is_still(*est);
     const RigCalibration rig = rec.rig();
     dsp::SparseStereo stereo(rig);
-    PointCloud map;
-    std::size_t pairs_used = 0;
-    for (const StereoFrame& f : sink.kept) {
-      const PointCloud c = stereo.triangulate(f.left.image, f.right.image);
-      for (std::size_t i = 0; i < c.size(); ++i) map.push_back(c.point(i));
-      ++pairs_used;
-      if (!still) break;
-    }
+    const dsp::SparseMap sparse = dsp::build_sparse_map(stereo, sink.kept, still);
+    const PointCloud& map = sparse.points;
     dsp::RoomConfig room_cfg;
     room_cfg.detector.threshold_m = kMapThresholdM;
     room_cfg.max_surfaces = 4;
@@ -198,40 +173,34 @@ int run_run_command(const RunArgs& args) {
     std::snprintf(buf, sizeof buf,
                   "sparse map: %zu points from %zu stereo pairs; %zu surfaces (%s, %u rounds, "
                   "%.1f ms):\n",
-                  room.points, pairs_used, room.surfaces.size(),
+                  room.points, sparse.pairs_used, room.surfaces.size(),
                   down_cam ? "gravity-aligned" : "3-D", room.rounds, time_ms);
     text += buf;
     text += firmware::to_text(room);
     // The floor's own orientation, fitted freely in 3-D on its inliers, against gravity.
-    for (const auto& s : room.surfaces) {
-      if (s.wall.kind != SurfaceKind::kFloor || !down_cam) continue;
-      std::vector<Eigen::Vector3d> inliers;
-      for (std::size_t i = 0; i < map.size(); ++i) {
-        const Eigen::Vector3d p = map.point(i).cast<double>();
-        if (std::abs(s.wall.plane.signed_distance(p)) < kMapThresholdM) inliers.push_back(p);
+    if (down_cam) {
+      std::optional<Eigen::Vector3d> up_cam_gt;
+      if (const auto* gt = recording::nearest_ground_truth(rec, sink.first.t_ns)) {
+        up_cam_gt = R_body_cam.transpose() * gt->up_body();
       }
-      const auto free_fit = dsp::fit_plane_least_squares(inliers);
-      if (!free_fit) continue;
-      const Eigen::Vector3d up_cam = -down_cam->normalized();
-      nlohmann::json floor = {{"distance_below_camera_m", s.wall.plane.d * -1.0},
-                              {"free_fit_vs_imu_gravity_deg", axis_angle_deg(free_fit->n, up_cam)}};
-      std::snprintf(buf, sizeof buf,
-                    "floor %.3f m below the camera; its inliers' free 3-D fit is %.2f deg from "
-                    "IMU gravity",
-                    -s.wall.plane.d, floor["free_fit_vs_imu_gravity_deg"].get<double>());
-      text += buf;
-      if (!rec.ground_truth.empty()) {
-        const Eigen::Vector3d up_cam_gt =
-            R_body_cam.transpose() *
-            (gt_near(rec, sink.first.t_ns).T_world_body.linear().transpose() *
-             Eigen::Vector3d::UnitZ());
-        const double gt_deg = axis_angle_deg(free_fit->n, up_cam_gt);
-        floor["free_fit_vs_ground_truth_gravity_deg"] = gt_deg;
-        std::snprintf(buf, sizeof buf, ", %.2f deg from ground-truth gravity", gt_deg);
+      if (const auto check =
+              dsp::check_floor(map, room, kMapThresholdM, -down_cam->normalized(), up_cam_gt)) {
+        nlohmann::json floor = {{"distance_below_camera_m", check->distance_below_viewer_m},
+                                {"free_fit_vs_imu_gravity_deg", check->free_fit_vs_up_deg}};
+        std::snprintf(buf, sizeof buf,
+                      "floor %.3f m below the camera; its inliers' free 3-D fit is %.2f deg from "
+                      "IMU gravity",
+                      check->distance_below_viewer_m, check->free_fit_vs_up_deg);
         text += buf;
+        if (check->free_fit_vs_up2_deg) {
+          floor["free_fit_vs_ground_truth_gravity_deg"] = *check->free_fit_vs_up2_deg;
+          std::snprintf(buf, sizeof buf, ", %.2f deg from ground-truth gravity",
+                        *check->free_fit_vs_up2_deg);
+          text += buf;
+        }
+        text += "\n";
+        walls["floor_check"] = floor;
       }
-      text += "\n";
-      walls["floor_check"] = floor;
     }
     std::ofstream(fs::path(args.out) / "walls.json") << walls.dump(2) << "\n";
     cloud::write_ply_rgb(fs::path(args.out) / "sparse_map.ply", map,

@@ -5,6 +5,8 @@
 
 #include <cstdio>
 
+#include "wallar/dsp/walls/room_check.hpp"
+
 namespace wallar::firmware {
 
 nlohmann::json to_json(const recording::StreamStats& s) {
@@ -128,22 +130,11 @@ std::string to_text(const dsp::RoomResult& r) {
 std::vector<std::array<std::uint8_t, 3>> surface_colours(const PointCloud& cloud,
                                                          const dsp::RoomResult& r,
                                                          double threshold_m) {
-  static constexpr std::array<std::array<std::uint8_t, 3>, 8> kPalette{{{230, 25, 75},
-                                                                        {60, 180, 75},
-                                                                        {0, 130, 200},
-                                                                        {245, 130, 48},
-                                                                        {145, 30, 180},
-                                                                        {70, 240, 240},
-                                                                        {240, 50, 230},
-                                                                        {210, 245, 60}}};
-  std::vector<std::array<std::uint8_t, 3>> rgb(cloud.size(), {128, 128, 128});
+  const std::vector<int> surface = dsp::surface_of_points(cloud, r, threshold_m);
+  std::vector<std::array<std::uint8_t, 3>> rgb(cloud.size(), dsp::kNoSurfaceRgb);
   for (std::size_t i = 0; i < cloud.size(); ++i) {
-    const Eigen::Vector3d p = cloud.point(i).cast<double>();
-    for (const auto& s : r.surfaces) {
-      if (std::abs(s.wall.plane.signed_distance(p)) < threshold_m) {
-        rgb[i] = kPalette[(s.wall.id - 1) % kPalette.size()];
-        break;
-      }
+    if (surface[i] >= 0) {
+      rgb[i] = dsp::surface_colour_rgb(r.surfaces[static_cast<std::size_t>(surface[i])].wall.id);
     }
   }
   return rgb;

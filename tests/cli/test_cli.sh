@@ -173,6 +173,91 @@ walls_bad_input)
   printf 'ply\nformat ascii 1.0\nelement vertex 1\nproperty list uchar int x\nend_header\n' >"$tmp/list.ply"
   run walls "$tmp/list.ply"; expect_rc 2; one_err_line; expect_err "list.ply"
   ;;
+eval_real)
+  # The room of the bundled EuRoC cut, its figure, table and summary.
+  run eval real --recording "$rec" --out "$tmp/ev" --json; expect_rc 0
+  for f in real_overlay.png real_map.csv real_summary.json; do
+    [ -s "$tmp/ev/$f" ] || fail "no $f"
+  done
+  ls "$tmp/ev" | grep -q '\.part$' && fail "a .part file was left behind"
+  python3 - "$tmp/ev" "$tmp/out" <<'PY' || fail "eval real outputs"
+import json, struct, sys, zlib
+ev, out = sys.argv[1], sys.argv[2]
+d = json.load(open(out))
+assert d == json.load(open(f'{ev}/real_summary.json')), 'stdout and real_summary.json differ'
+assert d['ground_truth'] is True and d['pairs_used'] == 8, d
+assert d['points'] > 2000, d['points']
+floors = [s for s in d['surfaces'] if s['kind'] == 'floor']
+assert len(floors) == 1, d['surfaces']
+f = d['floor']
+assert f is not None, 'no floor'
+assert 0.5 < f['distance_below_camera_m'] < 1.5, f
+assert f['free_fit_vs_ground_truth_gravity_deg'] < 2.0, f
+assert f['free_fit_vs_imu_gravity_deg'] < 2.0, f
+assert d['imu_gravity_vs_ground_truth_deg'] < 1.0, d['imu_gravity_vs_ground_truth_deg']
+# The table: one row per map point, labelled with the summary's surface names.
+rows = open(f'{ev}/real_map.csv').read().splitlines()
+assert rows[0] == 'x,y,z,surface', rows[0]
+labels = [r.split(',')[3] for r in rows[1:]]
+assert len(labels) == d['points'], (len(labels), d['points'])
+names = {s['name']: s['map_points'] for s in d['surfaces']}
+assert set(labels) <= set(names) | {'none'}, set(labels)
+for name, n in names.items():
+    assert labels.count(name) == n, (name, labels.count(name), n)
+# The figure: an RGB PNG the size of the camera image, with floor-coloured points drawn on it.
+png = open(f'{ev}/real_overlay.png', 'rb').read()
+assert png[:8] == b'\x89PNG\r\n\x1a\n', 'not a PNG'
+w, h, depth, kind = struct.unpack('>IIBB', png[16:26])
+assert (w, h, depth, kind) == (752, 480, 8, 2), (w, h, depth, kind)
+pos, idat = 8, b''
+while pos < len(png):
+    n, tag = struct.unpack('>I4s', png[pos:pos + 8])
+    if tag == b'IDAT': idat += png[pos + 8:pos + 8 + n]
+    pos += 12 + n
+raw, stride, prev, red = zlib.decompress(idat), 3 * w, bytearray(3 * w), 0
+for y in range(h):
+    ft, line = raw[y * (stride + 1)], bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+    for x in range(stride):
+        a = line[x - 3] if x >= 3 else 0; b = prev[x]; c = prev[x - 3] if x >= 3 else 0
+        if ft == 1: line[x] = (line[x] + a) & 255
+        elif ft == 2: line[x] = (line[x] + b) & 255
+        elif ft == 3: line[x] = (line[x] + (a + b) // 2) & 255
+        elif ft == 4:
+            p = a + b - c; pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+            line[x] = (line[x] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
+    red += sum(1 for x in range(0, stride, 3) if tuple(line[x:x + 3]) == (230, 25, 75))
+    prev = line
+assert red > 2000, f'{red} floor-coloured pixels'
+PY
+  run eval real --recording "$rec" --out "$tmp/ev2" --pairs 2; expect_rc 0
+  expect_out "from 2 of 40 stereo pairs"; expect_out "deg from ground-truth gravity"
+  [ -s "$tmp/ev2/real_summary.json" ] || fail "no real_summary.json with --pairs 2"
+  ;;
+eval_real_bad_input)
+  run eval real --recording "$tmp/nope" --out "$tmp/ev"; expect_rc 2; one_err_line
+  expect_err "$tmp/nope: no such recording folder"
+  [ -e "$tmp/ev/real_summary.json" ] && fail "real_summary.json left behind (missing recording)"
+  run eval real --recording "$rec" --out "$tmp/ev" --pairs 41; expect_rc 2; one_err_line
+  expect_err "cam0/data.csv: has 40 stereo pairs, the study asks for 41"
+  [ -e "$tmp/ev/real_summary.json" ] && fail "real_summary.json left behind (too few pairs)"
+  run eval real --out "$tmp/ev"; expect_rc 2; expect_err "recording"
+  mkdir -p "$tmp/r"; cp -r "$rec/mav0" "$tmp/r/"; chmod -R u+w "$tmp/r"
+  first=$(sed -n 2p "$tmp/r/mav0/cam0/data.csv" | cut -d, -f2 | tr -d '\r')
+  head -c 100 "$rec/mav0/cam0/data/$first" >"$tmp/r/mav0/cam0/data/$first"
+  run eval real --recording "$tmp/r" --out "$tmp/ev"; expect_rc 2; one_err_line
+  expect_err "cam0/data/$first"
+  [ -e "$tmp/ev/real_summary.json" ] && fail "real_summary.json left behind (corrupt image)"
+  ls "$tmp/ev" 2>/dev/null | grep -q . && fail "files left behind: $(ls "$tmp/ev")"
+  # Without ground truth the study runs and says so.
+  cp "$rec/mav0/cam0/data/$first" "$tmp/r/mav0/cam0/data/$first"
+  rm -r "$tmp/r/mav0/state_groundtruth_estimate0"
+  run eval real --recording "$tmp/r" --out "$tmp/ev" --pairs 2 --json; expect_rc 0
+  [ "$(json "d['ground_truth']")" = False ] || fail "ground truth reported"
+  [ "$(json "d['imu_gravity_vs_ground_truth_deg']")" = None ] || fail "IMU vs ground truth"
+  [ "$(json "d['floor']['free_fit_vs_ground_truth_gravity_deg']")" = None ] || fail "floor vs truth"
+  run eval real --recording "$tmp/r" --out "$tmp/ev" --pairs 2; expect_rc 0
+  expect_out "no ground truth in this recording"
+  ;;
 *)
   fail "unknown case" ;;
 esac

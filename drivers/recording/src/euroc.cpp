@@ -6,6 +6,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -202,6 +203,14 @@ ImuCalibration read_imu_sensor_yaml(const fs::path& path) {
   c.accel_noise_density = root.at("accelerometer_noise_density").as_double();
   c.accel_random_walk = root.at("accelerometer_random_walk").as_double();
   return c;
+}
+
+const GroundTruthState* nearest_ground_truth(const EurocRecording& rec, TimeNs t_ns) {
+  if (rec.ground_truth.empty()) return nullptr;
+  return &*std::min_element(rec.ground_truth.begin(), rec.ground_truth.end(),
+                            [&](const auto& a, const auto& b) {
+                              return std::llabs(a.t_ns - t_ns) < std::llabs(b.t_ns - t_ns);
+                            });
 }
 
 EurocRecording read_euroc(const fs::path& root, const ReadOptions& options) {

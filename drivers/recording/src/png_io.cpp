@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file png_io.cpp
-/// @brief 8-bit gray PNG through libpng's simplified API (available on every target, unlike
-/// OpenCV's imgcodecs on the arm64 multiarch build).
+/// @brief 8-bit gray (and RGB, write only) PNG through libpng's simplified API (available on every
+/// target, unlike OpenCV's imgcodecs on the arm64 multiarch build).
 #include <png.h>
 
 #include <cstring>
@@ -60,6 +60,30 @@ void save_png_gray(const std::filesystem::path& path, const Image& image) {
       0) {
     throw_input_error(path.string(), 0, std::string("cannot write PNG: ") + png.message);
   }
+}
+
+std::vector<std::uint8_t> encode_png_rgb(const Image& image, const std::string& name) {
+  if (image.empty() || image.format() != PixelFormat::kRgb8) {
+    throw_input_error(name, 0, "only non-empty 8-bit RGB images can be encoded as RGB PNG");
+  }
+  png_image png;
+  std::memset(&png, 0, sizeof png);
+  png.version = PNG_IMAGE_VERSION;
+  png.width = static_cast<png_uint_32>(image.width());
+  png.height = static_cast<png_uint_32>(image.height());
+  png.format = PNG_FORMAT_RGB;
+  png_alloc_size_t size = 0;  // first pass: the encoded size
+  if (png_image_write_to_memory(&png, nullptr, &size, 0, image.data(), image.stride_bytes(),
+                                nullptr) == 0) {
+    throw_input_error(name, 0, std::string("cannot encode PNG: ") + png.message);
+  }
+  std::vector<std::uint8_t> bytes(size);
+  if (png_image_write_to_memory(&png, bytes.data(), &size, 0, image.data(), image.stride_bytes(),
+                                nullptr) == 0) {
+    throw_input_error(name, 0, std::string("cannot encode PNG: ") + png.message);
+  }
+  bytes.resize(size);
+  return bytes;
 }
 
 }  // namespace wallar::recording

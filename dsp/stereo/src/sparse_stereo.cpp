@@ -96,4 +96,15 @@ PointCloud SparseStereo::triangulate(const Image& left, const Image& right,
   return cloud;
 }
 
+SparseMap build_sparse_map(SparseStereo& stereo, std::span<const StereoFrame> pairs, bool still) {
+  SparseMap map;
+  for (const StereoFrame& f : pairs) {
+    const PointCloud c = stereo.triangulate(f.left.image, f.right.image);
+    for (std::size_t i = 0; i < c.size(); ++i) map.points.push_back(c.point(i));
+    ++map.pairs_used;
+    if (!still) break;
+  }
+  return map;
+}
+
 }  // namespace wallar::dsp

@@ -52,6 +52,11 @@ struct GroundTruthState {
   Eigen::Vector3d vel_world_m_s = Eigen::Vector3d::Zero();
   Eigen::Vector3d gyro_bias_rad_s = Eigen::Vector3d::Zero();
   Eigen::Vector3d accel_bias_m_s2 = Eigen::Vector3d::Zero();
+
+  /// The world's "up" (+z, against gravity) in the body frame.
+  [[nodiscard]] Eigen::Vector3d up_body() const {
+    return T_world_body.linear().transpose() * Eigen::Vector3d::UnitZ();
+  }
 };
 
 struct EurocRecording {
@@ -65,6 +70,10 @@ struct EurocRecording {
     return RigCalibration{{cams[0].calib, cams[1].calib}, imu_calib};
   }
 };
+
+/// The ground-truth state nearest t_ns (the earlier one on a tie), or null when the recording
+/// has no ground truth.
+const GroundTruthState* nearest_ground_truth(const EurocRecording& rec, TimeNs t_ns);
 
 struct ReadOptions {
   /// Check that every image file named in data.csv exists (stat only, no decoding).
@@ -98,6 +107,9 @@ Image load_png_gray(const std::filesystem::path& path, int expected_width = 0,
                     int expected_height = 0);
 /// Writes an 8-bit gray image as PNG; throws InputError on failure.
 void save_png_gray(const std::filesystem::path& path, const Image& image);
+/// Encodes an 8-bit RGB image as PNG in memory (for writers that place the file themselves,
+/// e.g. atomically); throws InputError naming `name` on failure.
+std::vector<std::uint8_t> encode_png_rgb(const Image& image, const std::string& name);
 
 /// Writes a recording in the EuRoC layout as samples arrive. Every image is written to a
 /// temporary name, then renamed, before its CSV row is appended and flushed, so a recording

@@ -9,10 +9,12 @@
 #pragma once
 
 #include <opencv2/core.hpp>
+#include <span>
 
 #include "wallar/core/calibration.hpp"
 #include "wallar/core/image.hpp"
 #include "wallar/core/point_cloud.hpp"
+#include "wallar/core/stereo_frame.hpp"
 
 namespace wallar::dsp {
 
@@ -43,5 +45,16 @@ class SparseStereo {
   cv::Matx33d R1_;  //!< left camera -> rectified left
   double f_px_ = 0.0, cx_ = 0.0, cy_ = 0.0, baseline_m_ = 0.0;
 };
+
+/// A sparse map of several stereo pairs, all in the first pair's left camera frame.
+struct SparseMap {
+  PointCloud points;
+  std::size_t pairs_used = 0;
+};
+
+/// Triangulates `pairs` in order and merges their points. Merging is only right when the
+/// camera did not move between the pairs (`still`, e.g. from the IMU); otherwise only the first
+/// pair is used.
+SparseMap build_sparse_map(SparseStereo& stereo, std::span<const StereoFrame> pairs, bool still);
 
 }  // namespace wallar::dsp
