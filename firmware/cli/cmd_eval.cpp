@@ -10,6 +10,7 @@ void add_eval_command(CLI::App& app, std::function<int()>& run) {
   CLI::App* eval = app.add_subcommand(
       "eval", "Evaluation suite: the thesis's experiments, runtime, real data, marker truth");
   eval->require_subcommand(1);
+  add_eval_marker_command(*eval, run);
   (void)run;
 }
 
