@@ -32,6 +32,8 @@ void add_walls_command(CLI::App& app, std::function<int()>& run);
 void add_eval_command(CLI::App& app, std::function<int()>& run);
 /// `wallar eval real`, added to the `eval` subcommand.
 void add_eval_real_command(CLI::App& eval, std::function<int()>& run);
+/// `wallar eval marker`, added to the `eval` subcommand.
+void add_eval_marker_command(CLI::App& eval, std::function<int()>& run);
 
 }  // namespace wallar::cli
 

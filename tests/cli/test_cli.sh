@@ -257,6 +257,34 @@ eval_real_bad_input)
   [ "$(json "d['floor']['free_fit_vs_ground_truth_gravity_deg']")" = None ] || fail "floor vs truth"
   run eval real --recording "$tmp/r" --out "$tmp/ev" --pairs 2; expect_rc 0
   expect_out "no ground truth in this recording"
+eval_marker)
+  # Render a marker view with the bundled calibration, find it again, check the distance.
+  run eval marker --render --recording "$rec" --distance-m 1.2 --angle-deg 30 --out "$tmp/m.png" --seed 3
+  if [ "$(rc)" = 1 ] && grep -qF "not in this build" "$tmp/err"; then
+    one_err_line; expect_err "ArUco marker support is not in this build (OpenCV contrib is host-only)"
+    run eval marker --image "$tmp/m.png" --recording "$rec"; expect_rc 1; one_err_line
+    expect_err "not in this build"
+    echo "ok [$case_name] (without ArUco)"; exit 0
+  fi
+  expect_rc 0; expect_out "rendered"; [ -s "$tmp/m.png" ] || fail "no rendered image"
+  run eval marker --image "$tmp/m.png" --recording "$rec" --json; expect_rc 0
+  [ "$(json "abs(d['distance_m'] - 1.2) < 0.01")" = True ] || fail "distance $(json "d['distance_m']")"
+  [ "$(json "d['marker']['id']")" = 0 ] || fail "id"
+  [ "$(json "d['plane']['d'] < 0 and abs(-d['plane']['d'] - 1.2 * 0.8660254) < 0.01")" = True ] || fail "plane"
+  run eval marker --image "$tmp/m.png" --recording "$rec"; expect_rc 0
+  expect_out "plane (camera frame"; expect_out "T_cam_marker"; expect_out "reprojection rms"
+  # Another marker, and a real frame without a marker: exit 1, one line.
+  run eval marker --image "$tmp/m.png" --recording "$rec" --id 4; expect_rc 1; one_err_line
+  expect_err "no ArUco marker 4X4_50 id 4 found"
+  run eval marker --image "$rec/mav0/cam0/data/1403715273262142976.png" --recording "$rec"
+  expect_rc 1; one_err_line; expect_err "no ArUco marker"
+  # Bad input: exit 2, one line.
+  run eval marker --image "$tmp/m.png" --recording "$rec" --dictionary 9X9_7; expect_rc 2; one_err_line
+  expect_err "unknown ArUco dictionary '9X9_7'"
+  run eval marker --image "$tmp/missing.png" --recording "$rec"; expect_rc 2; one_err_line
+  expect_err "missing.png"
+  run eval marker --image "$tmp/m.png" --recording "$tmp/nowhere"; expect_rc 2; one_err_line
+  run eval marker --recording "$rec"; expect_rc 2; one_err_line; expect_err "exactly one of"
   ;;
 *)
   fail "unknown case" ;;
