@@ -173,6 +173,43 @@ walls_bad_input)
   printf 'ply\nformat ascii 1.0\nelement vertex 1\nproperty list uchar int x\nend_header\n' >"$tmp/list.ply"
   run walls "$tmp/list.ply"; expect_rc 2; one_err_line; expect_err "list.ply"
   ;;
+eval_sweep)
+  # The generator, read back by `wallar walls` (labels are an extra PLY property).
+  run eval synth --out "$tmp/scene.ply" --rho-b 0.2 --seed 3 --json; expect_rc 0
+  [ "$(json "d['labels']['wall'], d['labels']['front_plane'], d['labels']['backlier']")" = "100 150 25" ] \
+    || fail "synth counts: $(cat "$tmp/out")"
+  run walls "$tmp/scene.ply" --threshold 0.1; expect_rc 0
+  head -2 "$tmp/out" | grep -qE "wall +id 1: n = \([+-]0\.0[0-9]+, [+-]0\.0[0-9]+, -1\.0000\), d = -(1\.99|2\.00)" || fail "wall not first: $(cat "$tmp/out")"
+  run eval synth --out "$tmp/scene.csv" --rho-b 0.2; expect_rc 0
+  [ "$(wc -l <"$tmp/scene.csv")" = 376 ] || fail "csv rows"   # header + 100 + 150 + 25 + 100
+  # A small fig. 4.2 sweep: RANSAC-like beta 0 fails, 0.5 succeeds.
+  run eval sweep bsf --out "$tmp/sw" --seeds 1-2 --beta 0,0.5 --rho-b 0.3 --no-plots --json
+  expect_rc 0
+  [ "$(json "d['trials']")" = 4 ] || fail "trials"
+  grep -q '^0,0.3,0,2,0,' "$tmp/sw/bsf.csv" || fail "beta 0 should fail: $(cat "$tmp/sw/bsf.csv")"
+  grep -q '^0.5,0.3,2,2,1,' "$tmp/sw/bsf.csv" || fail "beta 0.5 should succeed"
+  for f in bsf.csv bsf.gp bsf.json; do [ -s "$tmp/sw/$f" ] || fail "no $f"; done
+  if command -v gnuplot >/dev/null; then
+    run eval sweep methods --out "$tmp/m" --seeds 1 --rho-b 0.2 --methods ransac,bsf; expect_rc 0
+    head -c 8 "$tmp/m/methods.png" | od -c | grep -q 'P   N   G' || fail "methods.png is not a PNG"
+  fi
+  ;;
+eval_bad_input)
+  # Every bad argument is found before anything is written: no folder, no partial file.
+  run eval sweep bsf --out "$tmp/a" --beta 1:0:0.1; expect_rc 2; one_err_line; expect_err "--beta: empty range"
+  run eval sweep methods --out "$tmp/a" --methods ransac,magic; expect_rc 2; one_err_line
+  expect_err "unknown method 'magic'"
+  run eval sweep bsf --out "$tmp/a" --seeds 1,two; expect_rc 2; one_err_line
+  expect_err "--seeds: 'two' is not an unsigned integer"
+  run eval sweep bsf --out "$tmp/a" --threshold-m 0.1; expect_rc 2; one_err_line
+  expect_err "does not apply to sweep 'bsf'"
+  run eval sweep nosuch --out "$tmp/a"; expect_rc 2; one_err_line; expect_err "unknown sweep"
+  [ -e "$tmp/a" ] && fail "a rejected sweep left $tmp/a behind"
+  run eval synth --out "$tmp/scene.xyz"; expect_rc 2; one_err_line; expect_err "want .ply or .csv"
+  [ -e "$tmp/scene.xyz" ] && fail "a rejected synth left a file"
+  run eval all --recording "$tmp/none" --out "$tmp/a"; expect_rc 2
+  [ -e "$tmp/a" ] && fail "a rejected eval all left $tmp/a behind"
+  ;;
 eval_real)
   # The room of the bundled EuRoC cut, its figure, table and summary.
   run eval real --recording "$rec" --out "$tmp/ev" --json; expect_rc 0
@@ -257,6 +294,7 @@ eval_real_bad_input)
   [ "$(json "d['floor']['free_fit_vs_ground_truth_gravity_deg']")" = None ] || fail "floor vs truth"
   run eval real --recording "$tmp/r" --out "$tmp/ev" --pairs 2; expect_rc 0
   expect_out "no ground truth in this recording"
+  ;;
 eval_marker)
   # Render a marker view with the bundled calibration, find it again, check the distance.
   run eval marker --render --recording "$rec" --distance-m 1.2 --angle-deg 30 --out "$tmp/m.png" --seed 3
