@@ -79,7 +79,7 @@ OutputDir::OutputDir(fs::path dir, bool plots) : dir_(std::move(dir)), plots_(pl
 }
 
 fs::path OutputDir::write(const std::string& name, std::string_view content) {
-  const fs::path final_path = dir_ / name;
+  fs::path final_path = dir_ / name;
   const fs::path tmp = dir_ / (name + ".part");
   std::FILE* f = std::fopen(tmp.c_str(), "wb");
   if (f == nullptr) throw_input_error(tmp.string(), 0, "cannot open for writing");
