@@ -4,6 +4,7 @@ if (!exists("outfile")) outfile = "binomial.png"
 set terminal pngcairo size 900,650 font "DejaVu Sans,11" noenhanced
 set output outfile
 set datafile separator ","
+set datafile missing NaN
 set title "B-RANSAC (eq. 3.4): rho set vs the data's rho_b (fig. 4.3)\n(normal within 5 deg and offset within 0.1 m of the true wall)"
 set xlabel "rho_b set in the algorithm"
 set ylabel "rho_b of the data"

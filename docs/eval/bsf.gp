@@ -4,6 +4,7 @@ if (!exists("outfile")) outfile = "bsf.png"
 set terminal pngcairo size 900,650 font "DejaVu Sans,11" noenhanced
 set output outfile
 set datafile separator ","
+set datafile missing NaN
 set title "BSF-RANSAC (eq. 3.1): beta vs the data's rho_b (fig. 4.2)\n(normal within 5 deg and offset within 0.1 m of the true wall)"
 set xlabel "beta (backlier weight)"
 set ylabel "rho_b of the data"

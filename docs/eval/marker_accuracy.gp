@@ -4,6 +4,7 @@ if (!exists("outfile")) outfile = "marker_accuracy.png"
 set terminal pngcairo size 1300,560 font "DejaVu Sans,11" noenhanced
 set output outfile
 set datafile separator ","
+set datafile missing NaN
 # Marker ground truth: plane error of the ArUco estimate against the rendered truth.
 # Medians over 5 renders per point (marker_accuracy.csv has each).
 set multiplot layout 1,2 title "ArUco 4X4_50, 177 mm marker, cam0 752x480, noise sigma 2"

@@ -4,6 +4,7 @@ if (!exists("outfile")) outfile = "rho-estimate.png"
 set terminal pngcairo size 900,650 font "DejaVu Sans,11" noenhanced
 set output outfile
 set datafile separator ","
+set datafile missing NaN
 set title "B-RANSAC's rho_b estimated from the data (BSF pass) vs the true rho_b"
 set xlabel "rho_b of the data"
 set ylabel "estimated rho_b"

@@ -325,12 +325,12 @@ nlohmann::json sweep_threshold(Context& c) {
       " m (uniform, full width)\"\n"
       "set logscale x\nset xlabel \"inlier threshold [m]\"\nset key top left\nset grid\n"
       "set ylabel \"RMSE, eq. 3.6 [mm]\"\n"
-      "plot \"threshold.csv\" skip 1 using 1:(strcol(2) eq \"ransac\" ? $3*1000 : 1/0) with "
-      "linespoints title \"RANSAC\", \"\" skip 1 using 1:(strcol(2) eq \"bsf\" ? $3*1000 : 1/0) "
+      "plot \"threshold.csv\" skip 1 using 1:(strcol(2) eq \"ransac\" ? $3*1000 : NaN) with "
+      "linespoints title \"RANSAC\", \"\" skip 1 using 1:(strcol(2) eq \"bsf\" ? $3*1000 : NaN) "
       "with linespoints title \"BSF-RANSAC\"\n"
       "set ylabel \"inliers\"\n"
-      "plot \"threshold.csv\" skip 1 using 1:(strcol(2) eq \"ransac\" ? $4 : 1/0) with "
-      "linespoints title \"RANSAC\", \"\" skip 1 using 1:(strcol(2) eq \"bsf\" ? $4 : 1/0) with "
+      "plot \"threshold.csv\" skip 1 using 1:(strcol(2) eq \"ransac\" ? $4 : NaN) with "
+      "linespoints title \"RANSAC\", \"\" skip 1 using 1:(strcol(2) eq \"bsf\" ? $4 : NaN) with "
       "linespoints title \"BSF-RANSAC\"\n"
       "unset multiplot\n";
   return c.finish(t, script, best, 900, 900);
@@ -384,7 +384,7 @@ nlohmann::json sweep_curves(Context& c, const char* flag, const std::vector<Meth
     const std::string name = method_name(methods[i]);
     script += (i ? std::string(", \"\"") : "\"" + c.name() + ".csv\"") +
               " skip 1 using 1:(strcol(2) eq \"" + name +
-              "\" ? $5 : 1/0) with linespoints lw 2 title \"" + name + "\"";
+              "\" ? $5 : NaN) with linespoints lw 2 title \"" + name + "\"";
   }
   script += "\n";
   return c.finish(t, script, findings);
@@ -426,12 +426,12 @@ nlohmann::json sweep_gravity(Context& c) {
       "gravity (thesis 4.3)\"\n"
       "set xlabel \"gravity error [deg]\"\nset grid\nset key top left\n"
       "set ylabel \"RMSE, eq. 3.6 [mm]\"\n"
-      "plot \"gravity.csv\" skip 1 using 1:(strcol(2) eq \"3d\" ? $3*1000 : 1/0) with "
+      "plot \"gravity.csv\" skip 1 using 1:(strcol(2) eq \"3d\" ? $3*1000 : NaN) with "
       "linespoints lw 2 title \"3-D (no gravity)\", \"\" skip 1 using 1:(strcol(2) eq \"2d\" ? "
-      "$3*1000 : 1/0) with linespoints lw 2 title \"2-D with gravity\"\n"
+      "$3*1000 : NaN) with linespoints lw 2 title \"2-D with gravity\"\n"
       "set ylabel \"normal error [deg]\"\n"
-      "plot \"gravity.csv\" skip 1 using 1:(strcol(2) eq \"3d\" ? $4 : 1/0) with linespoints lw 2 "
-      "title \"3-D (no gravity)\", \"\" skip 1 using 1:(strcol(2) eq \"2d\" ? $4 : 1/0) with "
+      "plot \"gravity.csv\" skip 1 using 1:(strcol(2) eq \"3d\" ? $4 : NaN) with linespoints lw 2 "
+      "title \"3-D (no gravity)\", \"\" skip 1 using 1:(strcol(2) eq \"2d\" ? $4 : NaN) with "
       "linespoints lw 2 title \"2-D with gravity\"\n"
       "unset multiplot\n";
   return c.finish(t, script, findings, 900, 900);
@@ -503,7 +503,7 @@ nlohmann::json sweep_runtime(Context& c) {
     for (std::size_t i = 0; i < std::size(kModes); ++i) {
       script += std::string(i ? ", \"\"" : "\"runtime.csv\"") + " skip 1 using 2:(strcol(1) eq \"" +
                 kModes[i].name + "\" && abs($3-" + num(ratio) +
-                ")<1e-9 ? $4 : 1/0) with linespoints lw 2 title \"" + kModes[i].name + "\"";
+                ")<1e-9 ? $4 : NaN) with linespoints lw 2 title \"" + kModes[i].name + "\"";
     }
     script += "\n";
   }
@@ -551,12 +551,12 @@ nlohmann::json sweep_rounds(Context& c) {
   const char* theory[] = {"3d-uniform", "2d-uniform"};
   for (const char* th : theory) {
     script += std::string("\"rounds.csv\" skip 1 using 2:(strcol(1) eq \"") + th +
-              "\" ? $4 : 1/0) with lines dt 2 lw 2 title \"eq. 2.7, " + (th[0] == '3' ? "3" : "2") +
+              "\" ? $4 : NaN) with lines dt 2 lw 2 title \"eq. 2.7, " + (th[0] == '3' ? "3" : "2") +
               "-point samples\", ";
   }
   for (std::size_t i = 0; i < std::size(kModes); ++i) {
     script += std::string(i ? ", " : "") + "\"rounds.csv\" skip 1 using 2:(strcol(1) eq \"" +
-              kModes[i].name + "\" ? $3 : 1/0) with linespoints lw 2 title \"" + kModes[i].name +
+              kModes[i].name + "\" ? $3 : NaN) with linespoints lw 2 title \"" + kModes[i].name +
               " (taken)\"";
   }
   script += "\n";

@@ -102,7 +102,8 @@ std::optional<fs::path> OutputDir::plot(const std::string& name, std::string_vie
   gp += "if (!exists(\"outfile\")) outfile = \"" + name + ".png\"\n";
   gp += "set terminal pngcairo size " + std::to_string(width_px) + "," + std::to_string(height_px) +
         " font \"DejaVu Sans,11\" noenhanced\n";
-  gp += "set output outfile\nset datafile separator \",\"\n";
+  // NaN marks the rows a curve skips (`cond ? $3 : NaN`); as "missing" they do not break lines.
+  gp += "set output outfile\nset datafile separator \",\"\nset datafile missing NaN\n";
   gp += script;
   write(name + ".gp", gp);
   if (!plots_) return std::nullopt;
