@@ -760,7 +760,8 @@ std::vector<std::string> sweep_grids(std::string_view sweep) {
 
 void check_sweep(std::string_view name, const SweepOptions& options) {
   const SweepDef& def = find_sweep(name);
-  for (const auto& [flag, values] : options.grids) {
+  for (const auto& grid : options.grids) {
+    const std::string& flag = grid.first;  // not a structured binding: clang 14 cannot capture it
     const bool known = std::any_of(def.grids.begin(), def.grids.end(),
                                    [&](const auto& g) { return flag == g.first; });
     if (known) continue;
