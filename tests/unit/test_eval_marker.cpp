@@ -65,7 +65,13 @@ TEST_P(MarkerViews, PlaneComesBackFromARenderedView) {
 INSTANTIATE_TEST_SUITE_P(KnownPoses, MarkerViews,
                          ::testing::Values(ViewCase{0.8, 0.0, 10.0, 0.3, 0.002},
                                            ViewCase{1.0, 40.0, -15.0, 0.3, 0.003},
-                                           ViewCase{2.0, 20.0, 5.0, 1.0, 0.01}));
+                                           ViewCase{2.0, 20.0, 5.0, 1.0, 0.01}),
+                         [](const ::testing::TestParamInfo<ViewCase>& view) {
+                           // e.g. "d1000mm_a40deg": readable names in ctest and CI logs.
+                           return "d" + std::to_string(std::lround(view.param.distance_m * 1000)) +
+                                  "mm_a" + std::to_string(std::lround(view.param.angle_deg)) +
+                                  "deg";
+                         });
 
 TEST(Marker, RenderingIsDeterministicForASeed) {
   if (!eval::aruco_available()) GTEST_SKIP() << "ArUco is not in this build";
