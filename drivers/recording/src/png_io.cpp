@@ -46,16 +46,26 @@ Image load_png_gray(const std::filesystem::path& path, int expected_width, int e
   return image;
 }
 
-void save_png_gray(const std::filesystem::path& path, const Image& image) {
-  if (image.empty() || image.format() != PixelFormat::kGray8) {
-    throw_input_error(path.string(), 0, "only non-empty 8-bit gray images can be saved as PNG");
-  }
+namespace {
+
+// libpng's simplified-API header for writing `image` in `format`.
+png_image png_header(const Image& image, png_uint_32 format) {
   png_image png;
   std::memset(&png, 0, sizeof png);
   png.version = PNG_IMAGE_VERSION;
   png.width = static_cast<png_uint_32>(image.width());
   png.height = static_cast<png_uint_32>(image.height());
-  png.format = PNG_FORMAT_GRAY;
+  png.format = format;
+  return png;
+}
+
+}  // namespace
+
+void save_png_gray(const std::filesystem::path& path, const Image& image) {
+  if (image.empty() || image.format() != PixelFormat::kGray8) {
+    throw_input_error(path.string(), 0, "only non-empty 8-bit gray images can be saved as PNG");
+  }
+  png_image png = png_header(image, PNG_FORMAT_GRAY);
   if (png_image_write_to_file(&png, path.c_str(), 0, image.data(), image.stride_bytes(), nullptr) ==
       0) {
     throw_input_error(path.string(), 0, std::string("cannot write PNG: ") + png.message);
@@ -66,12 +76,7 @@ std::vector<std::uint8_t> encode_png_rgb(const Image& image, const std::string& 
   if (image.empty() || image.format() != PixelFormat::kRgb8) {
     throw_input_error(name, 0, "only non-empty 8-bit RGB images can be encoded as RGB PNG");
   }
-  png_image png;
-  std::memset(&png, 0, sizeof png);
-  png.version = PNG_IMAGE_VERSION;
-  png.width = static_cast<png_uint_32>(image.width());
-  png.height = static_cast<png_uint_32>(image.height());
-  png.format = PNG_FORMAT_RGB;
+  png_image png = png_header(image, PNG_FORMAT_RGB);
   png_alloc_size_t size = 0;  // first pass: the encoded size
   if (png_image_write_to_memory(&png, nullptr, &size, 0, image.data(), image.stride_bytes(),
                                 nullptr) == 0) {

@@ -791,29 +791,23 @@ nlohmann::json run_sweep(std::string_view name, const SweepOptions& options, Out
         [&](double rho_b, std::uint64_t seed) { return thesis_scene(o, rho_b, seed); },
         "Robustness vs backliers on the thesis's scene (4.1)", "rho_b of the data");
   }
+  // windows and clutter: the same curves over one count of the §4.1 scene.
+  const bool windows = n == "windows";
+  std::size_t dsp::ThesisSceneParams::*const count =
+      windows ? &dsp::ThesisSceneParams::window_points : &dsp::ThesisSceneParams::clutter_points;
   const std::vector<Method> robust = {Method::kRansac, Method::kBsf, Method::kBinomial};
-  if (n == "windows") {
-    return sweep_curves(
-        c, "window-points", o.methods.empty() ? robust : o.methods,
-        [&](double k, std::uint64_t seed) {
-          dsp::ThesisSceneParams p = o.scene;
-          p.window_points = static_cast<std::size_t>(k);
-          p.seed = seed;
-          return dsp::make_thesis_scene(p);
-        },
-        "A window in the wall: a patch of backliers (rho_b " + num(o.scene.rho_b) + ")",
-        "points seen through the window");
-  }
   return sweep_curves(
-      c, "clutter-points", o.methods.empty() ? robust : o.methods,
+      c, windows ? "window-points" : "clutter-points", o.methods.empty() ? robust : o.methods,
       [&](double k, std::uint64_t seed) {
         dsp::ThesisSceneParams p = o.scene;
-        p.clutter_points = static_cast<std::size_t>(k);
+        p.*count = static_cast<std::size_t>(k);
         p.seed = seed;
         return dsp::make_thesis_scene(p);
       },
-      "Clutter: boxes between the front plane and the wall (rho_b " + num(o.scene.rho_b) + ")",
-      "points on the boxes");
+      (windows ? "A window in the wall: a patch of backliers (rho_b "
+               : "Clutter: boxes between the front plane and the wall (rho_b ") +
+          num(o.scene.rho_b) + ")",
+      windows ? "points seen through the window" : "points on the boxes");
 }
 
 void write_labelled_scene(const dsp::LabelledCloud& scene, const std::filesystem::path& path) {
