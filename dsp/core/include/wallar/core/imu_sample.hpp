@@ -6,6 +6,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <optional>
 
 #include "wallar/core/time.hpp"
@@ -20,6 +21,9 @@ struct ImuSample {
   Eigen::Vector3d gyro_rad_s = Eigen::Vector3d::Zero();  //!< angular rate, body frame [rad/s]
   Eigen::Vector3d accel_m_s2 = Eigen::Vector3d::Zero();  //!< specific force, body frame [m/s^2]
   std::optional<Eigen::Vector3d> mag_uT;                 //!< magnetic field, body frame [uT]
+  std::optional<double> temperature_c;                   //!< die temperature [deg C]
+  /// Attitude fused on the chip (BNO055), body vectors into the chip's own world frame.
+  std::optional<Eigen::Quaterniond> q_chipworld_body;
 };
 
 }  // namespace wallar
