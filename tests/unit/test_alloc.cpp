@@ -1,13 +1,15 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file test_alloc.cpp
 /// @brief Counts heap allocations on the fixed-rate paths: after setup, a wall detection
-/// allocates nothing. Its own executable: it replaces the global operator new.
+/// allocates nothing; a BNO055 UART driver step in RUN allocates nothing. Its own executable: it
+/// replaces the global operator new.
 #include <gtest/gtest.h>
 
 #include <atomic>
 #include <cstdlib>
 #include <new>
 
+#include "bno055_rig.hpp"
 #include "wallar/dsp/walls/synthetic.hpp"
 #include "wallar/dsp/walls/wall_detector.hpp"
 
@@ -89,3 +91,38 @@ TEST(Allocations, WallDetectionAllocatesNothingAfterSetup) {
 
 }  // namespace
 }  // namespace wallar::dsp
+
+namespace wallar::drivers {
+namespace {
+
+// Only the driver's step() is counted: the simulator on the other end of the pty allocates.
+TEST(Allocations, Bno055UartStepsInRunAllocateNothing) {
+  test::Bno055Rig rig;
+  rig.sink.samples.reserve(4096);
+  ASSERT_TRUE(rig.reach_run());
+  rig.run_for(100 * kNsPerMs);  // warm-up
+  const std::uint64_t samples_before = rig.counters().samples;
+  std::size_t steps = 0;
+  std::size_t allocations = 0;
+  const TimeNs end = rig.now + kNsPerS;
+  while (rig.now < end) {
+    if (steps == 60) rig.sim.garbage_next = 5;        // the resync path too
+    if (steps == 120) rig.sim.status_next_count = 1;  // and an error status
+    TimeNs wake = 0;
+    {
+      AllocationCounter counter;
+      wake = rig.step_driver();
+      allocations += counter.count();
+    }
+    rig.answer_and_advance(wake);
+    ++steps;
+  }
+  EXPECT_EQ(allocations, 0u) << steps << " steps";
+  EXPECT_GT(rig.counters().samples, samples_before + 90);  // they did real work
+  EXPECT_EQ(rig.driver->state(), ImuDriverState::kRun);
+  EXPECT_GE(rig.counters().resync, 1u);
+  EXPECT_GE(rig.counters().nack, 1u);
+}
+
+}  // namespace
+}  // namespace wallar::drivers
