@@ -63,14 +63,14 @@ void write_atomically(const fs::path& path, const std::string& text) {
   }
 }
 
-constexpr const char* kPlotScript = R"(set datafile separator ","
-set multiplot layout 2,1 title "Attitude filter on EuRoC V1_01: errors against ground truth"
+constexpr const char* kPlotScript =
+    R"(set multiplot layout 2,1 title "Attitude filter on EuRoC V1_01: errors against ground truth"
 set grid
 set key top right
 set xlabel "time [s]"
 set ylabel "tilt error [deg]"
 plot "imu_attitude.csv" skip 1 using 1:2 with lines lw 1.5 title "tilt (roll+pitch) error"
-set ylabel "gyro bias error [rad/s]"
+set ylabel "gyro bias error [mrad/s]"
 plot "imu_attitude.csv" skip 1 using 1:3 with lines title "x", "" skip 1 using 1:4 with lines title "y", "" skip 1 using 1:5 with lines title "z", "" skip 1 using 1:6 with lines lw 2 title "norm"
 unset multiplot
 )";
@@ -91,8 +91,8 @@ int run_imu_command(const ImuArgs& a) {
     csv.reserve(rec.imu.size() * 140 + 64);
     csv = kHeader;
   }
-  eval::CsvTable errors(
-      {"t_s", "tilt_deg", "bias_err_x", "bias_err_y", "bias_err_z", "bias_err_norm"});
+  eval::CsvTable errors({"t_s", "tilt_deg", "bias_err_x_mrad_s", "bias_err_y_mrad_s",
+                         "bias_err_z_mrad_s", "bias_err_norm_mrad_s"});
   const TimeNs t0_ns = rec.imu.front().t_ns;
   TimeNs next_plot_ns = t0_ns;
   Eigen::Vector3d last_gravity_imu = Eigen::Vector3d::Zero();
@@ -103,8 +103,11 @@ int run_imu_command(const ImuArgs& a) {
         if (r.error && r.t_ns >= next_plot_ns) {  // the figure at 20 Hz is plenty
           next_plot_ns = r.t_ns + 50 * kNsPerMs;
           const Eigen::Vector3d& e = r.error->gyro_bias_error_rad_s;
-          errors.add(ns_to_s(r.t_ns - t0_ns)).add(r.error->tilt_rad * 180.0 / M_PI);
-          errors.add(e.x()).add(e.y()).add(e.z()).add(e.norm());
+          // Rounded (ms, 1e-4 deg, 1e-4 mrad/s) so the committed table stays small.
+          auto round_to = [](double v, double scale) { return std::round(v * scale) / scale; };
+          errors.add(round_to(ns_to_s(r.t_ns - t0_ns), 1e3))
+              .add(round_to(r.error->tilt_rad * 180.0 / M_PI, 1e4));
+          for (const double b : {e.x(), e.y(), e.z(), e.norm()}) errors.add(round_to(b * 1e3, 1e4));
           errors.end_row();
         }
       });
