@@ -372,6 +372,14 @@ imu_bad_input)
   mkdir -p "$tmp/e/mav0/cam0"
   run imu "$tmp/e"; expect_rc 2; one_err_line; expect_err "imu0: missing folder"
   ;;
+calibrate_imu_cam)
+  # The bundled cut stands still: the rotation cannot be determined, and the command says why.
+  run calibrate imu-cam "$rec"; expect_rc 2; one_err_line
+  expect_err "only 0 frame pairs turn more than 1.0 deg"
+  run calibrate imu-cam --help; expect_rc 0; expect_out "--min-rotation"
+  run calibrate imu-cam "$tmp/nowhere"; expect_rc 2; one_err_line
+  expect_err "no such recording folder"
+  ;;
 *)
   fail "unknown case" ;;
 esac

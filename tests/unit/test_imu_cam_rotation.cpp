@@ -5,10 +5,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 #include <vector>
 
+#include "test_support.hpp"
 #include "wallar/core/time.hpp"
 #include "wallar/dsp/imu/imu_cam_rotation.hpp"
+#include "wallar/dsp/imu/visual_rotation.hpp"
+#include "wallar/firmware/imu_cam_calibration.hpp"
 
 namespace wallar::test {
 namespace {
@@ -122,6 +126,124 @@ TEST(ImuCamRotation, RotationsAboutOneAxisAreFlaggedAsUndetermined) {
   EXPECT_LT((r->R_cam_imu * Eigen::Vector3d::UnitZ() - R_cam_imu * Eigen::Vector3d::UnitZ()).norm(),
             1e-6);
   EXPECT_FALSE(dsp::solve_R_cam_imu(std::span(imu_rv).first(1), std::span(cam_rv).first(1)));
+}
+
+// The bundled left camera's intrinsics without distortion, so a homography K R K^-1 is exact.
+CameraCalibration pinhole_cam0() {
+  CameraCalibration c = recording::read_euroc(bundled_recording()).cams[0].calib;
+  c.distortion = {0.0, 0.0, 0.0, 0.0};
+  return c;
+}
+
+// The image the camera sees after turning by R_cam0_cam1 (bearings b1 = R_cam0_cam1^T b0).
+Image rotated_view(const Image& base, const CameraCalibration& c,
+                   const Eigen::Matrix3d& R_cam0_cam1) {
+  Eigen::Matrix3d K;
+  K << c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0;
+  const Eigen::Matrix3d H = K * R_cam0_cam1.transpose() * K.inverse();
+  cv::Matx33d Hcv;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) Hcv(i, j) = H(i, j);
+  Image out = Image::allocate(base.width(), base.height(), PixelFormat::kGray8);
+  const cv::Mat src(base.height(), base.width(), CV_8UC1, const_cast<std::uint8_t*>(base.data()),
+                    static_cast<std::size_t>(base.stride_bytes()));
+  cv::Mat dst(out.height(), out.width(), CV_8UC1, out.mutable_data(),
+              static_cast<std::size_t>(out.stride_bytes()));
+  cv::warpPerspective(src, dst, Hcv, src.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT, 0);
+  return out;
+}
+
+Image first_left_image() {
+  const auto rec = recording::read_euroc(bundled_recording());
+  return recording::load_png_gray(rec.cams[0].image_path(rec.cams[0].frames[0]));
+}
+
+TEST(ImuCamRotation, CameraRotationBetweenTwoRealImagesTurnedByAKnownRotation) {
+  const CameraCalibration cam = pinhole_cam0();
+  const Image base = first_left_image();
+  const Eigen::Vector3d truth = Eigen::Vector3d(0.02, -0.03, 0.015);  // about 2.2 degrees
+  const Image turned = rotated_view(
+      base, cam, Eigen::AngleAxisd(truth.norm(), truth.normalized()).toRotationMatrix());
+  const auto r = dsp::camera_rotation_between(base, turned, cam);
+  ASSERT_TRUE(r);
+  EXPECT_GT(r->inliers, 100u);
+  EXPECT_LT((r->rotvec_cam0_cam1 - truth).norm() * kDeg, 0.05) << r->rotvec_cam0_cam1.transpose();
+  // The same image twice: no rotation.
+  const auto none = dsp::camera_rotation_between(base, base, cam);
+  ASSERT_TRUE(none);
+  EXPECT_LT(none->rotvec_cam0_cam1.norm() * kDeg, 0.01);
+}
+
+// A recording whose camera turns about three axes in front of the bundled real view, with a
+// gyro that turns the same way in EuRoC's IMU frame: calibrate_imu_cam must find EuRoC's
+// R_cam_imu. The still bundled recording must be refused with a one-line reason.
+TEST(ImuCamRotation, CalibratesARecordingThatTurnsAndRefusesAStillOne) {
+  // Half-size images (and intrinsics) keep the PNG writing and reading quick.
+  CameraCalibration cam = pinhole_cam0();
+  const Image full = first_left_image();
+  Image base = Image::allocate(full.width() / 2, full.height() / 2, PixelFormat::kGray8);
+  cv::resize(cv::Mat(full.height(), full.width(), CV_8UC1, const_cast<std::uint8_t*>(full.data()),
+                     static_cast<std::size_t>(full.stride_bytes())),
+             cv::Mat(base.height(), base.width(), CV_8UC1, base.mutable_data(),
+                     static_cast<std::size_t>(base.stride_bytes())),
+             cv::Size(base.width(), base.height()), 0, 0, cv::INTER_AREA);
+  for (double* v : {&cam.fx, &cam.fy, &cam.cx, &cam.cy}) *v *= 0.5;
+  cam.width_px = base.width();
+  cam.height_px = base.height();
+  const Eigen::Matrix3d R_cam_imu = euroc_R_cam_imu();
+  auto R_base_cam = [](double t) {  // camera orientation against the base view
+    const Eigen::Vector3d th(0.1 * std::sin(3.0 * t), 0.1 * std::sin(2.3 * t + 1.0),
+                             0.08 * std::sin(2.7 * t + 2.0));
+    return Eigen::AngleAxisd(th.norm(), th.normalized()).toRotationMatrix();
+  };
+  RigCalibration rig = recording::read_euroc(bundled_recording()).rig();
+  for (CameraCalibration& c : rig.cams) {
+    const SE3d T_body_cam = c.T_body_cam;
+    const std::string name = c.name;
+    c = cam;
+    c.name = name;
+    c.T_body_cam = T_body_cam;
+  }
+  TempDir tmp;
+  {
+    recording::EurocWriter writer(tmp.path(), rig);
+    const TimeNs t0 = kNsPerS;
+    for (int i = 0; i < 2 * 200; ++i) {
+      const double t = i / 200.0;
+      ImuSample s;
+      s.t_ns = t0 + i * 5 * kNsPerMs;
+      // The rate held until the next sample, in the camera frame, then in the IMU frame.
+      const Eigen::Vector3d w_cam =
+          rotvec_of(R_base_cam(t).transpose() * R_base_cam(t + 0.005)) / 0.005;
+      s.gyro_rad_s = R_cam_imu.transpose() * w_cam;
+      s.accel_m_s2 = Eigen::Vector3d(9.81, 0.0, 0.0);
+      writer.write_imu(s);
+      if (i % 10 == 0 && i + 10 < 2 * 200) {
+        StereoFrame f;
+        f.t_ns = f.left.t_ns = f.right.t_ns = s.t_ns;
+        f.left.image = rotated_view(base, cam, R_base_cam(t));
+        f.right.image = f.left.image;
+        writer.write_stereo(f);
+      }
+    }
+    writer.close();
+  }
+  const auto rec = recording::read_euroc(tmp.path());
+  const firmware::ImuCamCalibration c = firmware::calibrate_imu_cam(rec);
+  EXPECT_GE(c.solved.pairs, 10u);
+  const double error_deg =
+      Eigen::AngleAxisd(c.solved.R_cam_imu * R_cam_imu.transpose()).angle() * kDeg;
+  EXPECT_LT(error_deg, 0.5);
+  EXPECT_LT(c.vs_calibration_deg, 0.5);  // the rig's T_BS holds the same rotation
+  EXPECT_GT(c.solved.min_axis_spread, 0.2);
+  std::printf(
+      "R_cam_imu error %.3f deg from %zu of %zu pairs (residual %.3f deg RMS, spread %.2f)\n",
+      error_deg, c.solved.pairs, c.frame_pairs, c.solved.residual_rms_rad * kDeg,
+      c.solved.min_axis_spread);
+
+  const auto still = recording::read_euroc(bundled_recording());
+  const std::string msg = input_error_of([&] { firmware::calibrate_imu_cam(still); });
+  EXPECT_THAT(msg, ::testing::HasSubstr("only 0 frame pairs turn more than 1.0 deg"));
 }
 
 }  // namespace
