@@ -180,7 +180,8 @@ void add_imu_command(CLI::App& app, std::function<int()>& run) {
       ->required();
   cmd->add_option("--out", a->out,
                   "Write t_ns,qw,qx,qy,qz,gx,gy,gz,bgx,bgy,bgz per IMU sample to FILE (q: IMU "
-                  "into a z-up world; g: unit gravity in the IMU frame; bg: gyro bias [rad/s])")
+                  "into a z-up world; g: unit gravity in the IMU frame; bg: gyro bias [rad/s]; nan "
+                  "before the first still window)")
       ->option_text("FILE");
   cmd->add_option("--plot", a->plot_dir,
                   "Write tilt and bias errors against ground truth (imu_attitude.csv, .gp, .png) "

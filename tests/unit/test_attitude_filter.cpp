@@ -124,6 +124,27 @@ TEST(AttitudeFilter, StartsFromTheFirstStillWindowAndTakesItsGravityAndBias) {
   EXPECT_NEAR(filter.gravity_dir_imu().norm(), 1.0, 1e-12);
 }
 
+TEST(AttitudeFilter, RowsBeforeTheStillWindowHaveNoEstimateAndItsOwnRowsShareIt) {
+  MotionSpec m;
+  m.still_s = 3.0;
+  m.moving_s = 1.0;
+  m.shake_first_window = true;
+  recording::EurocRecording rec;
+  rec.imu = make_motion(m, 5).samples;
+  std::vector<firmware::AttitudeRow> rows;
+  const firmware::AttitudeRun run =
+      firmware::run_attitude_filter(rec, dsp::AttitudeFilterConfig{},
+                                    [&rows](const firmware::AttitudeRow& r) { rows.push_back(r); });
+  ASSERT_EQ(rows.size(), rec.imu.size());
+  EXPECT_FALSE(run.errors);  // no ground truth
+  // The still window that started the filter is samples 200..399 (see the test above).
+  EXPECT_EQ(run.valid_rows, rec.imu.size() - 200);
+  EXPECT_FALSE(rows[199].valid);
+  EXPECT_TRUE(rows[200].valid);
+  for (std::size_t i = 0; i < rows.size(); ++i) ASSERT_EQ(rows[i].t_ns, rec.imu[i].t_ns);
+  EXPECT_EQ(rows[200].q_world_imu.coeffs(), rows[399].q_world_imu.coeffs());
+}
+
 TEST(AttitudeFilter, FollowsTiltAndLearnsAllThreeBiasAxesWhileTurning) {
   MotionSpec m;
   const Synthetic syn = make_motion(m, 2);
