@@ -10,6 +10,8 @@
 ///    dsp::make_sparse_map (2000 points, 3.5 % wall), one detection per iteration over the
 ///    scenes of seeds 1..kSeeds; counters success_pct (normal within 5 deg and offset within
 ///    0.1 m of the scene's wall) and mean_rounds.
+///  - `wallar bench imu`: imu/attitude_update{,_mag}: one dsp::AttitudeFilter::update() on a
+///    200 Hz stream of a turning body (target: under 1 us).
 ///
 /// Google Benchmark flags pass through after `--`; `--json FILE` writes JSON to FILE.
 /// Builds without Google Benchmark (WALLAR_BUILD_BENCH=OFF: the asan, tsan and fuzz presets) keep
@@ -32,6 +34,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "wallar/dsp/imu/attitude_filter.hpp"
 #include "wallar/dsp/walls/plane_kernel.hpp"
 #include "wallar/dsp/walls/synthetic.hpp"
 #include "wallar/dsp/walls/wall_detector.hpp"
@@ -193,6 +196,52 @@ void register_wall_benchmarks() {
   }
 }
 
+// ---- (d) the attitude filter ------------------------------------------------------------------
+
+// One iteration = one AttitudeFilter::update() (gyro propagation + accelerometer update) on a
+// precomputed 200 Hz stream of a body turning with a gyro bias; the stream cycles, with its
+// timestamps shifted on so time keeps increasing. With a magnetometer adds the heading update.
+void bm_attitude_update(benchmark::State& state, bool with_mag) {
+  constexpr std::size_t kSamples = 4096;
+  std::vector<ImuSample> samples(kSamples);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-0.05, 0.05);
+  for (std::size_t i = 0; i < kSamples; ++i) {
+    const double t_s = static_cast<double>(i) / 200.0;
+    ImuSample& s = samples[i];
+    s.t_ns = static_cast<TimeNs>(i) * 5 * kNsPerMs;
+    s.gyro_rad_s = Eigen::Vector3d(0.5 * std::sin(0.7 * t_s), 0.4 * std::cos(0.5 * t_s), 0.02) +
+                   Eigen::Vector3d(u(rng), u(rng), u(rng));
+    s.accel_m_s2 = Eigen::Vector3d(u(rng), u(rng), 9.81 + u(rng));
+    if (with_mag) s.mag_uT = Eigen::Vector3d(24.0 + u(rng), u(rng), -41.6);
+  }
+  dsp::AttitudeFilter filter;
+  dsp::StaticImuEstimate still;
+  still.mean_accel_m_s2 = Eigen::Vector3d(0.0, 0.0, 9.81);
+  filter.initialize(still, -5 * kNsPerMs);
+  std::size_t i = 0;
+  TimeNs offset_ns = 0;
+  for (auto _ : state) {
+    ImuSample s = samples[i];
+    s.t_ns += offset_ns;
+    benchmark::DoNotOptimize(filter.update(s));
+    if (++i == kSamples) {
+      i = 0;
+      offset_ns += static_cast<TimeNs>(kSamples) * 5 * kNsPerMs;
+    }
+  }
+  benchmark::DoNotOptimize(filter.q_world_imu());
+  state.counters["updates_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+
+void register_imu_benchmarks() {
+  benchmark::RegisterBenchmark("imu/attitude_update",
+                               [](benchmark::State& st) { bm_attitude_update(st, false); });
+  benchmark::RegisterBenchmark("imu/attitude_update_mag",
+                               [](benchmark::State& st) { bm_attitude_update(st, true); });
+}
+
 // The console shows ns_per_point_test in the label: as a counter it would be printed as if in
 // seconds. The JSON file (a separate reporter) keeps the counter as it is.
 class ConsoleWithNs final : public benchmark::ConsoleReporter {
@@ -212,8 +261,8 @@ class ConsoleWithNs final : public benchmark::ConsoleReporter {
   }
 };
 
-int run_bench_walls(const BenchArgs& args) {
-  std::vector<std::string> flags{"wallar bench walls"};
+int run_bench(const BenchArgs& args, const std::string& name, void (*register_cases)()) {
+  std::vector<std::string> flags{"wallar bench " + name};
   if (!args.json.empty()) {
     flags.push_back("--benchmark_out=" + args.json);
     flags.push_back("--benchmark_out_format=json");
@@ -231,7 +280,7 @@ int run_bench_walls(const BenchArgs& args) {
   benchmark::Initialize(&argc, argv.data());
   if (benchmark::ReportUnrecognizedArguments(argc, argv.data())) return kExitUsage;
   benchmark::AddCustomContext("plane_kernel_target", dsp::plane_kernel_target());
-  register_wall_benchmarks();
+  register_cases();
   ConsoleWithNs display(isatty(STDOUT_FILENO) ? benchmark::ConsoleReporter::OO_Color
                                               : benchmark::ConsoleReporter::OO_None);
   const std::size_t ran = benchmark::RunSpecifiedBenchmarks(console ? &display : nullptr);
@@ -243,7 +292,19 @@ int run_bench_walls(const BenchArgs& args) {
   return kExitOk;
 }
 
+int run_bench_walls(const BenchArgs& args) {
+  return run_bench(args, "walls", register_wall_benchmarks);
+}
+int run_bench_imu(const BenchArgs& args) { return run_bench(args, "imu", register_imu_benchmarks); }
+
 #else  // !WALLAR_HAVE_BENCHMARK
+
+int run_bench_imu(const BenchArgs& /*args*/) {
+  std::fprintf(stderr,
+               "wallar: error: this build has no benchmarks (configured with "
+               "WALLAR_BUILD_BENCH=OFF)\n");
+  return kExitFailure;
+}
 
 int run_bench_walls(const BenchArgs& /*args*/) {
   std::fprintf(stderr,
@@ -272,6 +333,15 @@ void add_bench_command(CLI::App& app, std::function<int()>& run) {
   walls->add_option("benchmark_flags", args->passthrough,
                     "Google Benchmark flags, after --, e.g. -- --benchmark_filter=kernel");
   walls->callback([args, &run] { run = [args] { return run_bench_walls(*args); }; });
+  CLI::App* imu = bench->add_subcommand(
+      "imu", "Attitude filter: one update (gyro propagation + accelerometer [+ magnetometer])");
+  imu->add_option("--json", args->json,
+                  "Also write the results as JSON to FILE (--benchmark_out=FILE "
+                  "--benchmark_out_format=json)")
+      ->option_text("FILE");
+  imu->add_option("benchmark_flags", args->passthrough,
+                  "Google Benchmark flags, after --, e.g. -- --benchmark_min_time=2");
+  imu->callback([args, &run] { run = [args] { return run_bench_imu(*args); }; });
 }
 
 }  // namespace wallar::cli

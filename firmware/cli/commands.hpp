@@ -30,6 +30,8 @@ void add_record_command(CLI::App& app, std::function<int()>& run);
 void add_bench_command(CLI::App& app, std::function<int()>& run);
 void add_walls_command(CLI::App& app, std::function<int()>& run);
 void add_eval_command(CLI::App& app, std::function<int()>& run);
+void add_imu_command(CLI::App& app, std::function<int()>& run);
+void add_calibrate_command(CLI::App& app, std::function<int()>& run);
 /// `wallar eval real`, added to the `eval` subcommand.
 void add_eval_real_command(CLI::App& eval, std::function<int()>& run);
 /// `wallar eval marker`, added to the `eval` subcommand.

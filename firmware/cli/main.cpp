@@ -46,6 +46,8 @@ int main(int argc, char** argv) {
   add_bench_command(app, run);
   add_walls_command(app, run);
   add_eval_command(app, run);
+  add_imu_command(app, run);
+  add_calibrate_command(app, run);
 
   try {
     app.parse(argc, argv);

@@ -324,6 +324,62 @@ eval_marker)
   run eval marker --image "$tmp/m.png" --recording "$tmp/nowhere"; expect_rc 2; one_err_line
   run eval marker --recording "$rec"; expect_rc 2; one_err_line; expect_err "exactly one of"
   ;;
+imu)
+  # The bundled still cut: one attitude row per IMU sample, the exact header, ground truth.
+  run imu "$rec" --out "$tmp/att.csv" --json; expect_rc 0
+  [ "$(head -1 "$tmp/att.csv")" = "t_ns,qw,qx,qy,qz,gx,gy,gz,bgx,bgy,bgz" ] || fail "header"
+  [ "$(tail -n +2 "$tmp/att.csv" | wc -l)" = 491 ] || fail "rows: $(wc -l <"$tmp/att.csv")"
+  ls "$tmp" | grep -q '\.part$' && fail "a .part file was left behind"
+  python3 - "$tmp/att.csv" "$tmp/out" <<'PY' || fail "imu outputs"
+import csv, json, math, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+d = json.load(open(sys.argv[2]))
+assert d['samples'] == 491 and d['valid_rows'] == 491, d
+assert d['ground_truth']['tilt_rms_deg'] < 1.0, d['ground_truth']
+assert d['ground_truth']['bias_error_final_rad_s'] < 3e-3, d['ground_truth']
+last = rows[-1]
+g = [float(last[k]) for k in ('gx', 'gy', 'gz')]
+assert abs(math.sqrt(sum(x * x for x in g)) - 1) < 1e-6, g
+assert g[0] < -0.9, g  # EuRoC's IMU x axis points up: gravity along -x
+q = [float(last[k]) for k in ('qw', 'qx', 'qy', 'qz')]
+assert abs(math.sqrt(sum(x * x for x in q)) - 1) < 1e-6, q
+assert abs(float(last['bgz']) - 0.077) < 3e-3, last
+gc = d['final_gravity_dir_cam0']
+assert gc[1] > 0.5, gc  # the left camera looks ahead: gravity is image-down (+y)
+PY
+  run imu "$rec"; expect_rc 0; expect_out "491 samples"; expect_out "tilt RMS"
+  run imu --help; expect_rc 0; expect_out "--out"; expect_out "--json"
+  ;;
+imu_only)
+  # A recording with only mav0/imu0: the still cut's IMU alone, then the real 145 s flight.
+  mkdir -p "$tmp/r/mav0"; cp -r "$rec/mav0/imu0" "$tmp/r/mav0/"
+  run imu "$tmp/r" --out "$tmp/att.csv" --json; expect_rc 0
+  [ "$(json "d['valid_rows']")" = 491 ] || fail "valid rows"
+  [ "$(json "'ground_truth' in d")" = False ] || fail "ground truth without any"
+  run imu "$src/tests/data/euroc_v1_01_imu" --json; expect_rc 0
+  [ "$(json "d['samples']")" = 29120 ] || fail "samples"
+  python3 -c "import json,sys; g=json.load(open('$tmp/out'))['ground_truth']; sys.exit(0 if g['tilt_rms_deg'] < 1.0 and g['bias_error_final_rad_s'] < 2e-3 else 1)" || fail "flight accuracy: $(cat "$tmp/out")"
+  ;;
+imu_bad_input)
+  run imu "$tmp/nowhere" --out "$tmp/att.csv"; expect_rc 2; one_err_line
+  expect_err "nowhere: no such recording folder"
+  mkdir -p "$tmp/r/mav0"; cp -r "$rec/mav0/imu0" "$tmp/r/mav0/"; chmod -R u+w "$tmp/r"
+  sed -i '9s/.*/1403715273462142976,0.1,0.2,0.3,0.4,bad,0.6/' "$tmp/r/mav0/imu0/data.csv"
+  run imu "$tmp/r" --out "$tmp/att.csv"; expect_rc 2; one_err_line
+  expect_err "imu0/data.csv:9: a_y (column 6) must be a finite number, got 'bad'"
+  [ -e "$tmp/att.csv" ] && fail "a failed run left an output file"
+  ls "$tmp" | grep -q '\.part$' && fail "a .part file was left behind"
+  mkdir -p "$tmp/e/mav0/cam0"
+  run imu "$tmp/e"; expect_rc 2; one_err_line; expect_err "imu0: missing folder"
+  ;;
+calibrate_imu_cam)
+  # The bundled cut stands still: the rotation cannot be determined, and the command says why.
+  run calibrate imu-cam "$rec"; expect_rc 2; one_err_line
+  expect_err "only 0 frame pairs turn more than 1.0 deg"
+  run calibrate imu-cam --help; expect_rc 0; expect_out "--min-rotation"
+  run calibrate imu-cam "$tmp/nowhere"; expect_rc 2; one_err_line
+  expect_err "no such recording folder"
+  ;;
 *)
   fail "unknown case" ;;
 esac

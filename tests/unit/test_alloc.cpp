@@ -10,6 +10,7 @@
 #include <new>
 
 #include "bno055_rig.hpp"
+#include "wallar/dsp/imu/attitude_filter.hpp"
 #include "wallar/dsp/walls/synthetic.hpp"
 #include "wallar/dsp/walls/wall_detector.hpp"
 
@@ -87,6 +88,29 @@ TEST(Allocations, WallDetectionAllocatesNothingAfterSetup) {
     EXPECT_TRUE(d3.found);
     EXPECT_TRUE(again.found);
   }
+}
+
+TEST(Allocations, AttitudeFilterUpdateAllocatesNothingAfterConstruction) {
+  // A moving first window (refused and slid), a still one (initialisation), then turning with a
+  // magnetometer: every path of update().
+  std::vector<ImuSample> samples(1200);
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const double t_s = static_cast<double>(i) / 200.0;
+    ImuSample& s = samples[i];
+    s.t_ns = static_cast<TimeNs>(i) * 5 * kNsPerMs;
+    const double turn = i < 100 ? 2.0 * std::sin(40.0 * t_s) : (i < 500 ? 0.0 : 0.3);
+    s.gyro_rad_s = Eigen::Vector3d(turn, 0.01, -0.02);
+    s.accel_m_s2 = Eigen::Vector3d(0.01 * std::sin(t_s), 0.0, 9.81);
+    if (i >= 600)
+      s.mag_uT = Eigen::Vector3d(24.0 * std::cos(0.3 * t_s), 24.0 * std::sin(0.3 * t_s), -41.6);
+  }
+  AttitudeFilter filter;  // setup: allocates the still window
+  AllocationCounter counter;
+  for (const ImuSample& s : samples) filter.update(s);
+  EXPECT_EQ(counter.count(), 0u);
+  EXPECT_TRUE(filter.initialized());
+  EXPECT_GE(filter.counters().init_windows_rejected, 1u);
+  EXPECT_GT(filter.counters().mag_updates, 500u);
 }
 
 }  // namespace

@@ -213,6 +213,56 @@ const GroundTruthState* nearest_ground_truth(const EurocRecording& rec, TimeNs t
                             });
 }
 
+std::optional<GroundTruthState> ground_truth_at(const std::vector<GroundTruthState>& gt,
+                                                TimeNs t_ns, DurationNs max_gap_ns) {
+  if (gt.empty() || t_ns < gt.front().t_ns || t_ns > gt.back().t_ns) return std::nullopt;
+  const auto after = std::lower_bound(
+      gt.begin(), gt.end(), t_ns, [](const GroundTruthState& g, TimeNs t) { return g.t_ns < t; });
+  if (after->t_ns == t_ns) return *after;
+  const GroundTruthState& a = *(after - 1);
+  const GroundTruthState& b = *after;
+  if (t_ns - a.t_ns > max_gap_ns && b.t_ns - t_ns > max_gap_ns) return std::nullopt;
+  const double f = static_cast<double>(t_ns - a.t_ns) / static_cast<double>(b.t_ns - a.t_ns);
+  GroundTruthState g;
+  g.t_ns = t_ns;
+  const Eigen::Quaterniond qa(a.T_world_body.linear());
+  const Eigen::Quaterniond qb(b.T_world_body.linear());
+  g.T_world_body = make_se3(
+      qa.slerp(f, qb), (1.0 - f) * a.T_world_body.translation() + f * b.T_world_body.translation());
+  g.vel_world_m_s = (1.0 - f) * a.vel_world_m_s + f * b.vel_world_m_s;
+  g.gyro_bias_rad_s = (1.0 - f) * a.gyro_bias_rad_s + f * b.gyro_bias_rad_s;
+  g.accel_bias_m_s2 = (1.0 - f) * a.accel_bias_m_s2 + f * b.accel_bias_m_s2;
+  return g;
+}
+
+EurocRecording read_euroc_imu(const fs::path& root) {
+  std::error_code ec;
+  if (!fs::is_directory(root, ec)) throw_input_error(root.string(), 0, "no such recording folder");
+  EurocRecording rec;
+  rec.mav0 = fs::is_directory(root / "mav0", ec) ? root / "mav0" : root;
+  if (!fs::is_directory(rec.mav0 / "imu0", ec)) {
+    throw_input_error((rec.mav0 / "imu0").string(), 0,
+                      "missing folder (an inertial recording needs mav0/imu0)");
+  }
+  const fs::path imu_csv = rec.mav0 / "imu0" / "data.csv";
+  rec.imu = parse_imu_csv(read_text_file(imu_csv), imu_csv.string());
+  if (fs::exists(rec.mav0 / "imu0" / "sensor.yaml", ec)) {
+    rec.imu_calib = read_imu_sensor_yaml(rec.mav0 / "imu0" / "sensor.yaml");
+  }
+  for (int i = 0; i < 2; ++i) {
+    CameraStream& cam = rec.cams[static_cast<std::size_t>(i)];
+    cam.dir = rec.mav0 / ("cam" + std::to_string(i));
+    if (!fs::exists(cam.dir / "sensor.yaml", ec)) continue;
+    cam.calib = read_camera_sensor_yaml(cam.dir / "sensor.yaml");
+    cam.calib.name = "cam" + std::to_string(i);
+  }
+  const fs::path gt_csv = rec.mav0 / "state_groundtruth_estimate0" / "data.csv";
+  if (fs::exists(gt_csv, ec)) {
+    rec.ground_truth = parse_ground_truth_csv(read_text_file(gt_csv), gt_csv.string());
+  }
+  return rec;
+}
+
 EurocRecording read_euroc(const fs::path& root, const ReadOptions& options) {
   std::error_code ec;
   if (!fs::is_directory(root, ec)) throw_input_error(root.string(), 0, "no such recording folder");

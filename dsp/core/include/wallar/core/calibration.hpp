@@ -43,6 +43,9 @@ struct RigCalibration {
   [[nodiscard]] SE3d T_cam0_cam1() const {
     return cams[0].T_body_cam.inverse() * cams[1].T_body_cam;
   }
+  /// T_cam0_imu: IMU coordinates into the left camera (its rotation turns IMU gravity into the
+  /// left camera's).
+  [[nodiscard]] SE3d T_cam0_imu() const { return cams[0].T_body_cam.inverse() * imu.T_body_imu; }
 };
 
 }  // namespace wallar

@@ -75,6 +75,12 @@ struct EurocRecording {
 /// has no ground truth.
 const GroundTruthState* nearest_ground_truth(const EurocRecording& rec, TimeNs t_ns);
 
+/// The ground-truth state at t_ns, interpolated between the two rows around it (position,
+/// velocity and biases linearly, attitude by slerp), or null when t_ns lies outside the ground
+/// truth's time span or more than `max_gap_ns` from a row. O(log n) per call.
+std::optional<GroundTruthState> ground_truth_at(const std::vector<GroundTruthState>& ground_truth,
+                                                TimeNs t_ns, DurationNs max_gap_ns = kNsPerS);
+
 struct ReadOptions {
   /// Check that every image file named in data.csv exists (stat only, no decoding).
   bool check_image_files = true;
@@ -84,6 +90,12 @@ struct ReadOptions {
 /// first problem: missing folder or file, short or malformed row, non-numeric field,
 /// non-monotonic or duplicate timestamps, missing calibration key, wrong matrix size.
 EurocRecording read_euroc(const std::filesystem::path& root, const ReadOptions& options = {});
+
+/// Reads only the inertial part of a recording in ROOT or ROOT/mav0: imu0/data.csv (required),
+/// imu0/sensor.yaml, camN/sensor.yaml (calibration only, no frames) and the ground truth, each
+/// when present. For IMU-only recordings and for tools that need no images; `cams[i].frames`
+/// stay empty. Throws InputError as read_euroc does.
+EurocRecording read_euroc_imu(const std::filesystem::path& root);
 
 /// Parses one CSV of each kind (exposed for tests and fuzzing). `name` appears in errors.
 std::vector<FrameEntry> parse_camera_csv(std::string_view text, const std::string& name);

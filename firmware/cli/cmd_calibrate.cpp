@@ -1,0 +1,82 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file cmd_calibrate.cpp
+/// @brief `wallar calibrate imu-cam RECORDING`: the IMU-to-left-camera rotation from the gyro
+/// against the images, compared with the recording's calibration.
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "commands.hpp"
+#include "wallar/firmware/imu_cam_calibration.hpp"
+
+namespace wallar::cli {
+namespace {
+
+struct ImuCamArgs {
+  std::string recording;
+  firmware::ImuCamCalibrationParams params;
+  bool json = false;
+};
+
+int run_imu_cam(const ImuCamArgs& a) {
+  recording::ReadOptions options;
+  options.check_image_files = true;
+  const recording::EurocRecording rec = recording::read_euroc(a.recording, options);
+  const firmware::ImuCamCalibration c = firmware::calibrate_imu_cam(rec, a.params);
+  const Eigen::Matrix3d& R = c.solved.R_cam_imu;
+  const Eigen::Quaterniond q(R);
+  nlohmann::json j = {
+      {"recording", a.recording},
+      {"R_cam_imu",
+       {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)}},
+      {"q_cam_imu_wxyz", {q.w(), q.x(), q.y(), q.z()}},
+      {"pairs_used", c.solved.pairs},
+      {"frame_pairs", c.frame_pairs},
+      {"turning_pairs", c.turning_pairs},
+      {"visual_failures", c.visual_failures},
+      {"angle_mismatches", c.angle_mismatches},
+      {"residual_rms_deg", c.solved.residual_rms_rad * 180.0 / M_PI},
+      {"min_axis_spread", c.solved.min_axis_spread},
+      {"gyro_bias_from_still_window", c.bias_from_still_window},
+      {"vs_calibration_deg", c.vs_calibration_deg}};
+  if (a.json) {
+    std::cout << j.dump(2) << "\n";
+    return kExitOk;
+  }
+  std::printf(
+      "wallar calibrate imu-cam: %zu of %zu frame pairs used (%zu turning), residual %.3f "
+      "deg RMS, axis spread %.2f\nR_cam_imu =\n",
+      c.solved.pairs, c.frame_pairs, c.turning_pairs, c.solved.residual_rms_rad * 180.0 / M_PI,
+      c.solved.min_axis_spread);
+  for (int i = 0; i < 3; ++i) std::printf("  [%+.6f %+.6f %+.6f]\n", R(i, 0), R(i, 1), R(i, 2));
+  std::printf("%.3f deg from the recording's cam0 calibration (T_BS)\n", c.vs_calibration_deg);
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_calibrate_command(CLI::App& app, std::function<int()>& run) {
+  CLI::App* calibrate = app.add_subcommand("calibrate", "Calibrations estimated from a recording");
+  calibrate->require_subcommand(1);
+  auto a = std::make_shared<ImuCamArgs>();
+  CLI::App* cmd = calibrate->add_subcommand(
+      "imu-cam",
+      "IMU-to-left-camera rotation from gyro vs image rotations (the camera must turn about two "
+      "axes)");
+  cmd->add_option("recording", a->recording, "EuRoC-layout recording with cam0 and imu0")
+      ->required();
+  cmd->add_option("--step", a->params.frame_step, "Pair frame k with frame k + STEP")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  cmd->add_option("--min-rotation", a->params.min_rotation_deg,
+                  "Least gyro rotation of a pair to use it [deg]")
+      ->check(CLI::Range(0.1, 90.0))
+      ->capture_default_str();
+  cmd->add_option("--min-pairs", a->params.min_pairs, "Fewest pairs to solve")
+      ->check(CLI::Range(2, 100000))
+      ->capture_default_str();
+  cmd->add_flag("--json", a->json, "Print the result as JSON on stdout");
+  cmd->callback([a, &run] { run = [a] { return run_imu_cam(*a); }; });
+}
+
+}  // namespace wallar::cli
