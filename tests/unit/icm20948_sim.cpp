@@ -124,6 +124,21 @@ void Icm20948Sim::make_sample(TimeNs t_ns) {
     s.accel[i] = quantize(truth.accel_m_s2[i] * a_lsb);
     s.gyro[i] = quantize(truth.gyro_rad_s[i] * g_lsb);
   }
+  // Self-test: the electrostatic actuation adds the factory response (2620 * 1.01^(code - 1)
+  // LSB at the ±250 dps / ±2 g ranges, less at wider ranges).
+  const std::uint8_t gst = regs_[2][u8(Reg2::GYRO_CONFIG_2)];
+  const std::uint8_t ast = regs_[2][u8(Reg2::ACCEL_CONFIG_2)];
+  for (int i = 0; i < 3; ++i) {
+    const auto response = [this](std::uint8_t code, int fs) {
+      return std::pow(1.01, code - 1.0) * 2620.0 * self_test_gain_ / (1 << fs);
+    };
+    if (gst & (reg::XGYRO_CTEN >> i)) {
+      s.gyro[i] = quantize(s.gyro[i] + response(regs_[1][u8(Reg1::SELF_TEST_X_GYRO) + i], gfs));
+    }
+    if (ast & (reg::AX_ST_EN_REG >> i)) {
+      s.accel[i] = quantize(s.accel[i] + response(regs_[1][u8(Reg1::SELF_TEST_X_ACCEL) + i], afs));
+    }
+  }
   const std::int16_t temp = quantize((truth.temperature_c - 21.0) * 333.87 + 21.0);
   // Output registers, big-endian, in register order (accel, gyro, temperature).
   std::array<std::uint8_t, 14> out{};

@@ -84,6 +84,8 @@ class Icm20948Sim final : public drivers::I2cAdapter {
   void set_nack_after_reset(int count) { nack_after_reset_ = count; }
   /// The magnetometer does not answer on the aux bus.
   void set_mag_present(bool present) { mag_present_ = present; }
+  /// Self-test response relative to the factory trim (1 = a healthy chip, 0 = dead MEMS).
+  void set_self_test_gain(double g) { self_test_gain_ = g; }
   /// Oscillator error as a fraction (0.01 = 1 % slow).
   void set_rate_error(double e) { rate_error_ = e; }
   /// Writes a register behind the driver's back.
@@ -149,6 +151,7 @@ class Icm20948Sim final : public drivers::I2cAdapter {
   int nack_budget_ = 0;
   bool mag_present_ = true;
   double rate_error_ = 0.0;
+  double self_test_gain_ = 1.0;
   int device_resets_ = 0;
 };
 

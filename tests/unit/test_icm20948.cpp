@@ -121,6 +121,31 @@ TEST(Icm20948SelfTest, RatioAgainstFactoryTrim) {
   EXPECT_FALSE(r.accel_pass);
 }
 
+TEST(Icm20948SelfTest, RunOnTheSimulatedChip) {
+  for (const double gain : {1.0, 0.2}) {
+    Icm20948Sim sim;  // at rest: gravity on z
+    drivers::I2cBus bus(sim, 0x68);
+    const auto wait = [&sim](DurationNs d) { sim.advance_to(sim.now() + d); };
+    const auto r = [&] {
+      sim.set_self_test_gain(gain);
+      return icm::run_self_test(bus, wait);
+    }();
+    ASSERT_TRUE(r);
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_NEAR(r->gyro_ratio[a], gain, 0.01) << a;
+      EXPECT_NEAR(r->accel_ratio[a], gain, 0.01) << a;
+    }
+    EXPECT_EQ(r->pass(), gain == 1.0);
+    // Self-test is switched off again.
+    EXPECT_EQ(sim.peek(2, static_cast<std::uint8_t>(icm::Reg2::GYRO_CONFIG_2)), 0);
+    EXPECT_EQ(sim.peek(2, static_cast<std::uint8_t>(icm::Reg2::ACCEL_CONFIG_2)), 0);
+  }
+  Icm20948Sim absent;
+  absent.set_unplugged(true);
+  drivers::I2cBus bus(absent, 0x68);
+  EXPECT_FALSE(icm::run_self_test(bus, [](DurationNs) {}));
+}
+
 // ---- The driver on the simulator -----------------------------------------------------------
 
 // Deterministic motion within the ±16 g / ±2000 dps ranges.

@@ -12,6 +12,7 @@ namespace wallar::drivers {
 using icm20948::Bank;
 using icm20948::FifoRecord;
 using icm20948::Reg0;
+using icm20948::Reg1;
 using icm20948::Reg2;
 using icm20948::Reg3;
 namespace ak = icm20948::ak09916;
@@ -69,6 +70,72 @@ SelfTestResult evaluate_self_test(const std::array<double, 3>& gyro_off_lsb,
     r.accel_pass = r.accel_pass && r.accel_ratio[i] >= 0.5 && r.accel_ratio[i] <= 1.5;
   }
   return r;
+}
+
+namespace {
+// Plain register access for the self-test (no state machine, no counters).
+bool st_write(I2cDevice& d, Bank bank, std::uint8_t reg, std::uint8_t value) {
+  const std::array<std::uint8_t, 2> sel{kRegBankSel, bank_sel_value(bank)};
+  const std::array<std::uint8_t, 2> tx{reg, value};
+  return d.transfer(sel, {}) == 0 && d.transfer(tx, {}) == 0;
+}
+bool st_read(I2cDevice& d, Bank bank, std::uint8_t reg, std::span<std::uint8_t> out) {
+  const std::array<std::uint8_t, 2> sel{kRegBankSel, bank_sel_value(bank)};
+  const std::array<std::uint8_t, 1> tx{reg};
+  return d.transfer(sel, {}) == 0 && d.transfer(tx, out) == 0;
+}
+// Mean accel (0..2) and gyro (3..5) output in LSB over n reads, one per wait(period).
+bool st_average(I2cDevice& d, const std::function<void(DurationNs)>& wait, int n,
+                std::array<double, 6>& mean) {
+  mean.fill(0.0);
+  for (int i = 0; i < n; ++i) {
+    std::array<std::uint8_t, 12> b{};
+    if (!st_read(d, Bank::k0, static_cast<std::uint8_t>(Reg0::ACCEL_XOUT_H), b)) return false;
+    for (std::size_t a = 0; a < 6; ++a) mean[a] += be16(b[2 * a], b[2 * a + 1]);
+    wait(kNsPerMs);
+  }
+  for (double& m : mean) m /= std::max(n, 1);
+  return true;
+}
+}  // namespace
+
+std::optional<SelfTestResult> run_self_test(I2cDevice& device,
+                                            const std::function<void(DurationNs)>& wait,
+                                            int samples, DurationNs settle_ns) {
+  const auto r2 = [](Reg2 r) { return static_cast<std::uint8_t>(r); };
+  // Awake, all axes on, 1125 Hz, DLPF on, the self-test ranges (±250 dps, ±2 g).
+  if (!st_write(device, Bank::k0, static_cast<std::uint8_t>(Reg0::PWR_MGMT_1), CLKSEL_AUTO) ||
+      !st_write(device, Bank::k0, static_cast<std::uint8_t>(Reg0::PWR_MGMT_2), 0x00) ||
+      !st_write(device, Bank::k2, r2(Reg2::GYRO_SMPLRT_DIV), 0) ||
+      !st_write(device, Bank::k2, r2(Reg2::GYRO_CONFIG_1), gyro_dlpfcfg(1) | GYRO_FCHOICE) ||
+      !st_write(device, Bank::k2, r2(Reg2::ACCEL_CONFIG), accel_dlpfcfg(1) | ACCEL_FCHOICE) ||
+      !st_write(device, Bank::k2, r2(Reg2::GYRO_CONFIG_2), 0) ||
+      !st_write(device, Bank::k2, r2(Reg2::ACCEL_CONFIG_2), 0)) {
+    return std::nullopt;
+  }
+  wait(settle_ns);
+  std::array<double, 6> off{};
+  if (!st_average(device, wait, samples, off)) return std::nullopt;
+  if (!st_write(device, Bank::k2, r2(Reg2::GYRO_CONFIG_2), XGYRO_CTEN | YGYRO_CTEN | ZGYRO_CTEN) ||
+      !st_write(device, Bank::k2, r2(Reg2::ACCEL_CONFIG_2),
+                AX_ST_EN_REG | AY_ST_EN_REG | AZ_ST_EN_REG)) {
+    return std::nullopt;
+  }
+  wait(settle_ns);
+  std::array<double, 6> on{};
+  const bool measured = st_average(device, wait, samples, on);
+  // Self-test off again whatever happened.
+  const bool cleared = st_write(device, Bank::k2, r2(Reg2::GYRO_CONFIG_2), 0) &&
+                       st_write(device, Bank::k2, r2(Reg2::ACCEL_CONFIG_2), 0);
+  std::array<std::uint8_t, 3> gyro_otp{};
+  std::array<std::uint8_t, 3> accel_otp{};
+  if (!measured || !cleared ||
+      !st_read(device, Bank::k1, static_cast<std::uint8_t>(Reg1::SELF_TEST_X_GYRO), gyro_otp) ||
+      !st_read(device, Bank::k1, static_cast<std::uint8_t>(Reg1::SELF_TEST_X_ACCEL), accel_otp)) {
+    return std::nullopt;
+  }
+  return evaluate_self_test({off[3], off[4], off[5]}, {on[3], on[4], on[5]}, gyro_otp,
+                            {off[0], off[1], off[2]}, {on[0], on[1], on[2]}, accel_otp);
 }
 
 }  // namespace icm20948

@@ -37,6 +37,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <span>
 #include <string_view>
@@ -114,6 +115,17 @@ SelfTestResult evaluate_self_test(const std::array<double, 3>& gyro_off_lsb,
                                   const std::array<double, 3>& accel_off_lsb,
                                   const std::array<double, 3>& accel_on_lsb,
                                   const std::array<std::uint8_t, 3>& accel_otp);
+
+/// Runs the self-test on the chip: wakes it at ±250 dps / ±2 g, averages `samples` reads of
+/// the output registers with self-test off and then on (after `settle_ns`), reads the factory
+/// codes from bank 1 SELF_TEST_*, and evaluates. `wait(ns)` is how the caller lets time pass
+/// (a sleep on the board, advancing the simulator in tests): this is a start-up or
+/// maintenance procedure, not part of the non-blocking streaming path. It leaves the chip
+/// reconfigured: run it before the driver starts, or let the driver's configuration re-check
+/// reset it. Returns nullopt when a transfer fails.
+std::optional<SelfTestResult> run_self_test(I2cDevice& device,
+                                            const std::function<void(DurationNs)>& wait,
+                                            int samples = 50, DurationNs settle_ns = 20 * kNsPerMs);
 
 }  // namespace icm20948
 
