@@ -1,15 +1,17 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file test_alloc.cpp
 /// @brief Counts heap allocations on the fixed-rate paths: after setup, a wall detection
-/// allocates nothing; a BNO055 UART driver step in RUN allocates nothing. Its own executable: it
-/// replaces the global operator new.
+/// allocates nothing, nor does an attitude-filter update, nor do the BNO055 UART and ICM-20948
+/// drivers' step() in RUN. Its own executable: it replaces the global operator new.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdlib>
 #include <new>
 
 #include "bno055_rig.hpp"
+#include "imu_rig.hpp"
 #include "wallar/dsp/imu/attitude_filter.hpp"
 #include "wallar/dsp/walls/synthetic.hpp"
 #include "wallar/dsp/walls/wall_detector.hpp"
@@ -150,3 +152,31 @@ TEST(Allocations, Bno055UartStepsInRunAllocateNothing) {
 
 }  // namespace
 }  // namespace wallar::drivers
+
+namespace wallar::test {
+namespace {
+
+TEST(Allocations, Icm20948StepAllocatesNothingInRun) {
+  ImuRig rig;
+  rig.sim.set_logging(false);
+  rig.sim.reserve(20000);
+  rig.sink.samples.reserve(20000);
+  rig.sink.no_grow = true;
+  rig.run_until(100 * kNsPerMs);
+  ASSERT_EQ(rig.driver.state(), drivers::ImuDriverState::kRun);
+  const std::uint64_t before = rig.driver.counters().samples;
+  std::size_t allocations = 0;
+  {
+    AllocationCounter counter;
+    rig.run_until(1100 * kNsPerMs);  // ~1125 steps with FIFO reads, mag reads, re-checks
+    allocations = counter.count();
+  }
+  EXPECT_EQ(allocations, 0u);
+  EXPECT_EQ(rig.driver.state(), drivers::ImuDriverState::kRun);
+  EXPECT_GT(rig.driver.counters().samples - before, 1000u);
+  EXPECT_TRUE(std::any_of(rig.sink.samples.begin(), rig.sink.samples.end(),
+                          [](const ImuSample& s) { return s.mag_uT.has_value(); }));
+}
+
+}  // namespace
+}  // namespace wallar::test

@@ -1,0 +1,146 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file gpio.cpp
+/// @brief libgpiod v1 line events: data-ready edges with kernel timestamps, debounced buttons.
+#include "wallar/drivers/bus/gpio.hpp"
+
+#include <gpiod.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+
+#include "wallar/core/error.hpp"
+
+namespace wallar::drivers {
+namespace {
+
+[[noreturn]] void fail(const GpioLineSpec& spec, const char* what, int err) {
+  throw_input_error(spec.chip + " line " + std::to_string(spec.line), 0,
+                    std::string(what) + ": " + std::strerror(err));
+}
+
+// Opens the chip and requests the line for the given edge events; on error releases what it
+// got and throws.
+void open_line(const GpioLineSpec& spec, const char* consumer, int request_type, int flags,
+               gpiod_chip*& chip, gpiod_line*& line) {
+  errno = 0;
+  chip = gpiod_chip_open_lookup(spec.chip.c_str());
+  if (chip == nullptr) fail(spec, "cannot open GPIO chip", errno != 0 ? errno : ENODEV);
+  line = gpiod_chip_get_line(chip, spec.line);
+  if (line == nullptr) {
+    const int err = errno != 0 ? errno : EINVAL;
+    gpiod_chip_close(chip);
+    chip = nullptr;
+    fail(spec, "no such line", err);
+  }
+  gpiod_line_request_config config{consumer, request_type, flags};
+  if (gpiod_line_request(line, &config, 0) < 0) {
+    const int err = errno;
+    gpiod_chip_close(chip);
+    chip = nullptr;
+    line = nullptr;
+    fail(spec, "cannot request line", err);
+  }
+}
+
+timespec to_timespec(DurationNs ns) {
+  if (ns < 0) ns = 0;
+  return ns_to_timespec(ns);
+}
+
+}  // namespace
+
+GpioEdgeInput::GpioEdgeInput(const GpioLineSpec& spec, const char* consumer) {
+  // Ask for the physical asserting edge and do not invert: the event type then needs no
+  // interpretation, whatever the kernel's v1 active-low semantics.
+  open_line(spec, consumer,
+            spec.active_low ? GPIOD_LINE_REQUEST_EVENT_FALLING_EDGE
+                            : GPIOD_LINE_REQUEST_EVENT_RISING_EDGE,
+            0, chip_, line_);
+}
+
+GpioEdgeInput::~GpioEdgeInput() {
+  if (line_ != nullptr) gpiod_line_release(line_);
+  if (chip_ != nullptr) gpiod_chip_close(chip_);
+}
+
+int GpioEdgeInput::fd() const { return gpiod_line_event_get_fd(line_); }
+
+std::optional<TimeNs> GpioEdgeInput::wait_edge(DurationNs timeout_ns) {
+  const timespec ts = to_timespec(timeout_ns);
+  int r = 0;
+  do {
+    r = gpiod_line_event_wait(line_, &ts);
+  } while (r < 0 && errno == EINTR);
+  if (r <= 0) {
+    if (r < 0) ++errors_;
+    return std::nullopt;
+  }
+  gpiod_line_event event{};
+  if (gpiod_line_event_read(line_, &event) < 0) {
+    ++errors_;
+    return std::nullopt;
+  }
+  return timespec_to_ns(event.ts);
+}
+
+std::optional<bool> Debouncer::on_edge(bool raw_level, TimeNs t_ns) {
+  raw_ = raw_level;
+  t_last_edge_ns_ = t_ns;
+  if (raw_ != reported_ && t_ns - t_reported_ns_ >= window_ns_) {
+    reported_ = raw_;
+    t_reported_ns_ = t_ns;
+    return reported_;
+  }
+  return std::nullopt;
+}
+
+std::optional<bool> Debouncer::settle(TimeNs now_ns) {
+  if (raw_ != reported_ && now_ns - t_last_edge_ns_ >= window_ns_ &&
+      now_ns - t_reported_ns_ >= window_ns_) {
+    reported_ = raw_;
+    t_reported_ns_ = now_ns;
+    return reported_;
+  }
+  return std::nullopt;
+}
+
+std::optional<TimeNs> Debouncer::settle_deadline() const {
+  if (raw_ == reported_) return std::nullopt;
+  return std::max(t_last_edge_ns_, t_reported_ns_) + window_ns_;
+}
+
+GpioButton::GpioButton(const GpioLineSpec& spec, const char* consumer, DurationNs debounce_ns)
+    : debouncer_(debounce_ns, false) {
+  open_line(spec, consumer, GPIOD_LINE_REQUEST_EVENT_BOTH_EDGES,
+            spec.active_low ? GPIOD_LINE_REQUEST_FLAG_ACTIVE_LOW : 0, chip_, line_);
+  const int v = gpiod_line_get_value(line_);  // logical level (active_low applied)
+  debouncer_ = Debouncer(debounce_ns, v > 0);
+}
+
+GpioButton::~GpioButton() {
+  if (line_ != nullptr) gpiod_line_release(line_);
+  if (chip_ != nullptr) gpiod_chip_close(chip_);
+}
+
+int GpioButton::fd() const { return gpiod_line_event_get_fd(line_); }
+
+std::optional<bool> GpioButton::service(DurationNs timeout_ns, TimeNs now_ns) {
+  std::optional<bool> changed;
+  timespec ts = to_timespec(timeout_ns);
+  for (;;) {
+    const int r = gpiod_line_event_wait(line_, &ts);
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) break;
+    gpiod_line_event event{};
+    if (gpiod_line_event_read(line_, &event) < 0) break;
+    // With ACTIVE_LOW requested, v1 reports logical edges: RISING means "became asserted".
+    const bool level = event.event_type == GPIOD_LINE_EVENT_RISING_EDGE;
+    if (auto c = debouncer_.on_edge(level, timespec_to_ns(event.ts))) changed = c;
+    ts = timespec{0, 0};  // drain what is pending without waiting again
+  }
+  if (auto c = debouncer_.settle(now_ns)) changed = c;
+  return changed;
+}
+
+}  // namespace wallar::drivers
