@@ -160,14 +160,14 @@ TEST(I2cBus, OpenFailureNamesTheDevice) {
   try {
     drivers::LinuxI2cAdapter adapter("/dev/i2c-wallar-does-not-exist");
     FAIL() << "opened a nonexistent adapter";
-  } catch (const InputError& e) {
+  } catch (const DeviceError& e) {
     const std::string msg = e.what();
     EXPECT_NE(msg.find("/dev/i2c-wallar-does-not-exist"), std::string::npos) << msg;
     EXPECT_NE(msg.find("No such file"), std::string::npos) << msg;
     EXPECT_EQ(msg.find('\n'), std::string::npos);
   }
   // A device node that is not an I2C adapter.
-  EXPECT_THROW(drivers::LinuxI2cAdapter("/dev/null"), InputError);
+  EXPECT_THROW(drivers::LinuxI2cAdapter("/dev/null"), DeviceError);
 }
 
 TEST(Gpio, OpenFailureNamesChipAndLine) {
@@ -175,12 +175,12 @@ TEST(Gpio, OpenFailureNamesChipAndLine) {
   try {
     drivers::GpioEdgeInput input(spec, "wallar-test");
     FAIL() << "opened a nonexistent chip";
-  } catch (const InputError& e) {
+  } catch (const DeviceError& e) {
     const std::string msg = e.what();
     EXPECT_NE(msg.find("gpiochip-wallar-none line 24"), std::string::npos) << msg;
     EXPECT_EQ(msg.find('\n'), std::string::npos);
   }
-  EXPECT_THROW(drivers::GpioButton(spec, "wallar-test", 20 * kNsPerMs), InputError);
+  EXPECT_THROW(drivers::GpioButton(spec, "wallar-test", 20 * kNsPerMs), DeviceError);
 }
 
 TEST(Gpio, KernelTimestampToNanoseconds) {

@@ -15,8 +15,8 @@ namespace wallar::drivers {
 namespace {
 
 [[noreturn]] void fail(const GpioLineSpec& spec, const char* what, int err) {
-  throw_input_error(spec.chip + " line " + std::to_string(spec.line), 0,
-                    std::string(what) + ": " + std::strerror(err));
+  throw DeviceError(spec.chip + " line " + std::to_string(spec.line) + ": " + what + ": " +
+                    std::strerror(err));
 }
 
 // Opens the chip and requests the line for the given edge events; on error releases what it

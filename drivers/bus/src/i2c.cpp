@@ -18,16 +18,15 @@ namespace wallar::drivers {
 LinuxI2cAdapter::LinuxI2cAdapter(std::string path) : path_(std::move(path)) {
   fd_ = ::open(path_.c_str(), O_RDWR | O_CLOEXEC);
   if (fd_ < 0) {
-    throw_input_error(path_, 0, std::string("cannot open I2C adapter: ") + std::strerror(errno));
+    throw DeviceError(path_ + ": cannot open I2C adapter: " + std::strerror(errno));
   }
   unsigned long funcs = 0;  // NOLINT(google-runtime-int): the ioctl's own type
   if (::ioctl(fd_, I2C_FUNCS, &funcs) < 0 || (funcs & I2C_FUNC_I2C) == 0) {
     const int err = errno;
     ::close(fd_);
     fd_ = -1;
-    throw_input_error(path_, 0,
-                      std::string("not a plain-I2C adapter (I2C_FUNCS): ") +
-                          (err != 0 ? std::strerror(err) : "I2C_FUNC_I2C missing"));
+    throw DeviceError(path_ + ": not a plain-I2C adapter (I2C_FUNCS): " +
+                      (err != 0 ? std::strerror(err) : "I2C_FUNC_I2C missing"));
   }
 }
 

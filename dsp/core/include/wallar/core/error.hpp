@@ -20,6 +20,14 @@ class InputError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// A device that cannot be opened or stopped answering (I2C adapter, GPIO chip, serial port,
+/// USB device): "DEVICE: what failed: strerror". Not the user's input, so the CLI exits with
+/// kExitFailure, not kExitBadInput.
+class DeviceError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 /// A bad value quoted in an error message: at most max_chars, non-printable bytes as '?',
 /// so a binary or hostile input cannot garble the one-line error.
 inline std::string printable(std::string_view s, std::size_t max_chars = 40) {

@@ -39,7 +39,7 @@ struct GpioLineSpec {
 /// active_low) and hands out each event's kernel timestamp.
 class GpioEdgeInput {
  public:
-  /// Throws wallar::InputError "CHIP line N: cannot ...: STRERROR" when the chip cannot be
+  /// Throws wallar::DeviceError "CHIP line N: cannot ...: STRERROR" when the chip cannot be
   /// opened or the line cannot be requested (busy, out of range).
   GpioEdgeInput(const GpioLineSpec& spec, const char* consumer);
   ~GpioEdgeInput();
@@ -92,7 +92,7 @@ class Debouncer {
 /// timestamps. pressed() is the logical level (active_low honoured).
 class GpioButton {
  public:
-  /// Throws wallar::InputError naming chip and line when it cannot be opened or requested.
+  /// Throws wallar::DeviceError naming chip and line when it cannot be opened or requested.
   GpioButton(const GpioLineSpec& spec, const char* consumer, DurationNs debounce_ns);
   ~GpioButton();
   GpioButton(const GpioButton&) = delete;

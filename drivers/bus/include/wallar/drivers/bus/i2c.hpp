@@ -66,7 +66,7 @@ class I2cAdapter {
 /// A Linux I2C adapter, /dev/i2c-N. Opened O_RDWR | O_CLOEXEC at construction.
 class LinuxI2cAdapter final : public I2cAdapter {
  public:
-  /// Throws wallar::InputError "PATH: cannot open I2C adapter: STRERROR" (one line) when the
+  /// Throws wallar::DeviceError "PATH: cannot open I2C adapter: STRERROR" (one line) when the
   /// device node cannot be opened, or does not support plain I2C transfers.
   explicit LinuxI2cAdapter(std::string path);
   ~LinuxI2cAdapter() override;

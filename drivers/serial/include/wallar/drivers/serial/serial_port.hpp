@@ -21,15 +21,16 @@
 #include <string>
 #include <string_view>
 
+#include "wallar/core/error.hpp"
 #include "wallar/core/time.hpp"
 
 namespace wallar::drivers {
 
 /// The device could not be opened or configured (missing, busy, not a tty): not bad input
 /// but a missing or broken device. The message names the path and strerror.
-class SerialError : public std::runtime_error {
+class SerialError : public DeviceError {
  public:
-  using std::runtime_error::runtime_error;
+  using DeviceError::DeviceError;
 };
 
 /// The termios speed constant of a standard baud rate, nullopt when the kernel has none.

@@ -25,6 +25,7 @@
 #include <string_view>
 #include <vector>
 
+#include "wallar/core/error.hpp"
 #include "wallar/core/time.hpp"
 
 struct libusb_context;
@@ -32,9 +33,9 @@ struct libusb_context;
 namespace wallar::drivers {
 
 /// libusb could not be initialised or an operation on a device failed.
-class UsbError : public std::runtime_error {
+class UsbError : public DeviceError {
  public:
-  using std::runtime_error::runtime_error;
+  using DeviceError::DeviceError;
 };
 
 struct UsbId {
