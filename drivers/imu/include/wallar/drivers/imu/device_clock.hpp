@@ -9,15 +9,20 @@
 ///
 ///     t_ns(k) = t_anchor_ns + (k - k_anchor) * period_ns
 ///
-/// for the sample with running index k. Observation latency is never negative, so an
-/// observation earlier than the model moves the model there at once (the lower envelope, as
-/// in convex-hull clock sync), while later ones pull it up only slowly (absorbing drift, not
-/// latency jitter). The period is the slope over a long baseline, bounded to the nominal
-/// period +- max_rate_error.
+/// for the sample with running index k. Observation latency is never negative, so the model
+/// follows the lower envelope of the observations: at each observation the anchor is the
+/// earliest time that any of the last kWindow observations, carried forward by the period,
+/// allows (as in convex-hull clock sync; only observations within a quarter of the baseline
+/// are carried, so the period's error is not multiplied into the stamp). Latency jitter therefore
+/// never moves a stamp later, and a model that ran early or late is corrected within kWindow
+/// observations. The period is the slope over the longest baseline since the last reset or gap,
+/// bounded to the nominal period +- max_rate_error.
 ///
 /// Threading: owned by one driver, single thread.
 #pragma once
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
 
 #include "wallar/core/time.hpp"
@@ -46,6 +51,10 @@ class DeviceClock {
   [[nodiscard]] std::uint64_t gaps() const { return gaps_; }
 
  private:
+  static constexpr std::size_t kWindow = 32;  //!< observations in the lower envelope
+
+  void restart(std::uint64_t k, double t);
+
   double nominal_period_ns_;
   double max_rate_error_;
   DurationNs fixed_latency_ns_;
@@ -54,6 +63,10 @@ class DeviceClock {
   double t_anchor_ns_ = 0.0;
   std::uint64_t k_first_ = 0;
   double t_first_ns_ = 0.0;
+  std::array<std::uint64_t, kWindow> window_k_{};
+  std::array<double, kWindow> window_t_ns_{};
+  std::size_t window_size_ = 0;
+  std::size_t window_next_ = 0;
   std::uint64_t observations_ = 0;
   std::uint64_t gaps_ = 0;
 };
