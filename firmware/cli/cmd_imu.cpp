@@ -2,7 +2,10 @@
 /// @file cmd_imu.cpp
 /// @brief `wallar imu RECORDING`: attitude and gyro bias from the IMU of a recording (EuRoC
 /// layout; mav0/imu0 alone is enough), one CSV row per sample, errors against ground truth.
+/// `wallar imu --board FILE`: the same from the board's live IMU driver.
+#include <atomic>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -12,7 +15,9 @@
 #include "commands.hpp"
 #include "wallar/core/error.hpp"
 #include "wallar/eval/output.hpp"
+#include "wallar/firmware/board.hpp"
 #include "wallar/firmware/imu_attitude.hpp"
+#include "wallar/firmware/live_imu.hpp"
 
 namespace wallar::cli {
 namespace {
@@ -21,6 +26,8 @@ namespace fs = std::filesystem;
 
 struct ImuArgs {
   std::string recording;
+  std::string board;
+  double seconds = 10.0;
   std::string out;
   std::string plot_dir;
   bool json = false;
@@ -75,7 +82,91 @@ plot "imu_attitude.csv" skip 1 using 1:3 with lines title "x", "" skip 1 using 1
 unset multiplot
 )";
 
+// Live: the driver's samples go through the filter on the imu thread (here, the main one);
+// rows are kept in storage reserved for the whole run, so the sink never allocates.
+class FilterSink final : public drivers::ImuSampleSink {
+ public:
+  FilterSink(const dsp::AttitudeFilterConfig& config, std::size_t max_rows) : filter_(config) {
+    rows_.reserve(max_rows);
+  }
+  void on_imu_sample(const ImuSample& sample) noexcept override {
+    if (rows_.size() == rows_.capacity()) {
+      ++dropped_;
+      return;
+    }
+    firmware::AttitudeRow r;
+    r.t_ns = sample.t_ns;
+    r.valid = filter_.update(sample);
+    r.q_world_imu = filter_.q_world_imu();
+    r.gravity_dir_imu = filter_.gravity_dir_imu();
+    r.gyro_bias_rad_s = filter_.gyro_bias_rad_s();
+    rows_.push_back(r);
+  }
+  const std::vector<firmware::AttitudeRow>& rows() const { return rows_; }
+  std::size_t dropped() const { return dropped_; }
+  const dsp::AttitudeFilter& filter() const { return filter_; }
+
+ private:
+  dsp::AttitudeFilter filter_;
+  std::vector<firmware::AttitudeRow> rows_;
+  std::size_t dropped_ = 0;
+};
+
+std::atomic<bool> g_stop{false};
+extern "C" void on_signal(int) { g_stop.store(true); }
+
+int run_live_imu(const ImuArgs& a) {
+  const firmware::BoardConfig board = firmware::load_board(a.board);
+  if (!(a.seconds > 0.0 && a.seconds <= 86400.0)) {
+    throw InputError("--seconds: must be in (0, 86400], got " + std::to_string(a.seconds));
+  }
+  dsp::AttitudeFilterConfig config;
+  config.init_window_samples = static_cast<std::size_t>(std::max(20.0, board.imu.rate_hz));
+  // Room for the whole run at up to twice the nominal rate (an oscillator runs fast, the
+  // ICM-20948 rounds its rate up).
+  FilterSink sink(config, static_cast<std::size_t>(2.0 * board.imu.rate_hz * a.seconds) + 64);
+  firmware::LiveImu imu(board, sink);
+  std::fprintf(stderr, "wallar imu: %s, %.1f s (Ctrl-C stops)\n", imu.description().c_str(),
+               a.seconds);
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  imu.run(monotonic_now_ns() + s_to_ns(a.seconds), g_stop);
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+
+  if (!a.out.empty()) {
+    std::string csv = kHeader;
+    for (const firmware::AttitudeRow& r : sink.rows()) append_row(csv, r);
+    write_atomically(a.out, csv);
+  }
+  const drivers::ImuDriver& driver = imu.driver();
+  const std::string counters = drivers::format_counters(driver.counters());
+  if (a.json) {
+    nlohmann::json j = {{"board", a.board},
+                        {"imu", imu.description()},
+                        {"state", std::string(drivers::to_string(driver.state()))},
+                        {"rows", sink.rows().size()},
+                        {"rows_dropped", sink.dropped()},
+                        {"counters", counters}};
+    std::cout << j.dump(2) << "\n";
+  } else {
+    std::printf("wallar imu: %zu samples (%zu not kept), driver %s; %s\n", sink.rows().size(),
+                sink.dropped(), std::string(drivers::to_string(driver.state())).c_str(),
+                counters.c_str());
+    if (!a.out.empty()) std::printf("  wrote %s\n", a.out.c_str());
+  }
+  if (g_stop.load()) return kExitInterrupted;
+  return sink.rows().empty() ? kExitFailure : kExitOk;
+}
+
 int run_imu_command(const ImuArgs& a) {
+  if (a.recording.empty() == a.board.empty()) {
+    throw InputError("wallar imu: give either a RECORDING or --board FILE");
+  }
+  if (!a.board.empty()) {
+    if (!a.plot_dir.empty()) throw InputError("--plot: needs a recording with ground truth");
+    return run_live_imu(a);
+  }
   const recording::EurocRecording rec = recording::read_euroc_imu(a.recording);
   if (rec.imu.empty()) {
     throw_input_error((rec.mav0 / "imu0" / "data.csv").string(), 0, "holds no IMU samples");
@@ -176,8 +267,11 @@ void add_imu_command(CLI::App& app, std::function<int()>& run) {
   CLI::App* cmd = app.add_subcommand(
       "imu", "Attitude and gyro bias from a recording's IMU (error-state Kalman filter)");
   cmd->add_option("recording", a->recording,
-                  "EuRoC-layout recording (ROOT or ROOT/mav0); mav0/imu0 alone is enough")
-      ->required();
+                  "EuRoC-layout recording (ROOT or ROOT/mav0); mav0/imu0 alone is enough");
+  cmd->add_option("--board", a->board,
+                  "Instead of a recording, run the IMU driver named in this board file (live)")
+      ->option_text("FILE");
+  cmd->add_option("--seconds", a->seconds, "Live: how long to run (default 10)")->option_text("S");
   cmd->add_option("--out", a->out,
                   "Write t_ns,qw,qx,qy,qz,gx,gy,gz,bgx,bgy,bgz per IMU sample to FILE (q: IMU "
                   "into a z-up world; g: unit gravity in the IMU frame; bg: gyro bias [rad/s]; nan "

@@ -372,6 +372,18 @@ imu_bad_input)
   mkdir -p "$tmp/e/mav0/cam0"
   run imu "$tmp/e"; expect_rc 2; one_err_line; expect_err "imu0: missing folder"
   ;;
+imu_live)
+  # The live path on a machine without the board's hardware: the device is named, exit 1.
+  run imu --board "$src/board/rpi5.yaml" --seconds 1 --out "$tmp/att.csv"; expect_rc 1
+  one_err_line; expect_err "/dev/i2c-1: cannot open I2C adapter"
+  [ -e "$tmp/att.csv" ] && fail "a failed live run left an output file"
+  run imu --board "$src/board/sim.yaml"; expect_rc 2; one_err_line
+  expect_err "the board names no IMU"
+  run imu "$rec" --board "$src/board/rpi5.yaml"; expect_rc 2; one_err_line
+  expect_err "give either a RECORDING or --board FILE"
+  run imu --board "$src/board/rpi5.yaml" --seconds 0; expect_rc 2; one_err_line
+  expect_err "--seconds: must be in (0, 86400]"
+  ;;
 calibrate_imu_cam)
   # The bundled cut stands still: the rotation cannot be determined, and the command says why.
   run calibrate imu-cam "$rec"; expect_rc 2; one_err_line

@@ -101,6 +101,28 @@ TEST(Board, MissingKeyIsNamed) {
   EXPECT_THAT(board_error(text), HasSubstr("b.yaml:8: missing key 'imu.bus'"));
 }
 
+TEST(Board, SerialImuByUsbIdOrByTty) {
+  std::string text = kLiveBoard;
+  const std::string icm = "  driver: icm20948\n  bus: /dev/i2c-1\n  address: 0x69\n";
+  text.replace(text.find(icm), icm.size(), "  driver: bno055\n  usb_id: \"10c4:EA60\"\n");
+  const auto by_usb = parse_board(text, "b.yaml", ".");
+  EXPECT_EQ(by_usb.imu.driver, "bno055");
+  EXPECT_EQ(by_usb.imu.usb_id, "10c4:EA60");
+  EXPECT_TRUE(by_usb.imu.bus.empty());  // found through USB discovery at start-up
+
+  std::string bad = text;
+  bad.replace(bad.find("10c4:EA60"), 9, "10c4-ea60");
+  EXPECT_THAT(board_error(bad), HasSubstr("b.yaml:9: 'imu.usb_id' must be VID:PID in hex"));
+
+  std::string on_i2c = kLiveBoard;
+  on_i2c.replace(on_i2c.find("  address"), 0, "  usb_id: \"10c4:ea60\"\n");
+  EXPECT_THAT(board_error(on_i2c), HasSubstr("'imu.usb_id' is for serial IMUs"));
+
+  std::string neither = text;
+  neither.replace(neither.find("  usb_id"), 22, "");
+  EXPECT_THAT(board_error(neither), HasSubstr("missing key 'imu.bus'"));
+}
+
 TEST(Board, WrongTypesAndRangesAreNamed) {
   std::string text = kLiveBoard;
   text.replace(text.find("0x69"), 4, "0x80");

@@ -114,9 +114,19 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
   }
 
   if (const YamlNode* imu = root.find("imu")) {
-    imu->check_keys({"driver", "bus", "address", "baud", "rate_hz", "data_ready"});
+    imu->check_keys({"driver", "bus", "usb_id", "address", "baud", "rate_hz", "data_ready"});
     b.imu.driver = one_of(imu->at("driver"), {"none", "icm20948", "bno055"});
-    if (b.imu.driver != "none") b.imu.bus = imu->at("bus").as_string();
+    if (const YamlNode* usb = imu->find("usb_id")) {
+      if (b.imu.driver != "bno055") usb->fail("is for serial IMUs on a USB-UART bridge (bno055)");
+      b.imu.usb_id = usb->as_string();
+      const bool ok =
+          b.imu.usb_id.size() == 9 && b.imu.usb_id[4] == ':' &&
+          b.imu.usb_id.find_first_not_of("0123456789abcdefABCDEF:") == std::string::npos;
+      if (!ok) usb->fail("must be VID:PID in hex, e.g. 10c4:ea60, got '" + b.imu.usb_id + "'");
+    }
+    // A serial IMU on a USB bridge may be named by its VID:PID instead of its tty.
+    if (b.imu.driver != "none" && (b.imu.usb_id.empty() || imu->has("bus")))
+      b.imu.bus = imu->at("bus").as_string();
     if (b.imu.driver == "icm20948") {
       const std::int64_t addr = imu->at("address").as_int();
       if (addr < 0x08 || addr > 0x77) imu->at("address").fail("must be a 7-bit address 0x08..0x77");

@@ -36,6 +36,8 @@ struct CameraConfig {
 struct ImuConfig {
   std::string driver = "none";  //!< none, icm20948 (I2C) or bno055 (UART)
   std::string bus;              //!< "/dev/i2c-1" or a serial device
+  std::string usb_id;           //!< serial IMUs: "VID:PID" of the USB-UART bridge, whose tty
+                                //!< is found at start-up when `bus` is empty
   std::uint8_t address = 0;     //!< 7-bit I2C address (I2C drivers)
   int baud = 115200;            //!< serial drivers
   double rate_hz = 200.0;

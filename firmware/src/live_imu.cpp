@@ -1,0 +1,114 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file live_imu.cpp
+/// @brief Opening the board's IMU and the imu thread's wait-and-step loop.
+#include "wallar/firmware/live_imu.hpp"
+
+#include <poll.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <optional>
+#include <stdexcept>
+
+#include "wallar/core/error.hpp"
+#include "wallar/drivers/bus/gpio.hpp"
+#include "wallar/drivers/bus/i2c.hpp"
+#include "wallar/drivers/imu/bno055_uart.hpp"
+#include "wallar/drivers/imu/icm20948.hpp"
+#include "wallar/drivers/usb/usb.hpp"
+
+namespace wallar::firmware {
+
+struct LiveImu::Parts {
+  std::unique_ptr<drivers::LinuxI2cAdapter> adapter;
+  std::unique_ptr<drivers::I2cBus> bus;
+  std::unique_ptr<drivers::GpioEdgeInput> data_ready;
+  std::unique_ptr<drivers::ImuDriver> driver;
+  drivers::Bno055Uart* bno055 = nullptr;  // the serial driver, for its fd
+};
+
+std::string find_usb_tty(const std::string& usb_id) {
+  const drivers::UsbId id = drivers::parse_usb_id(usb_id, "imu.usb_id");
+  drivers::UsbContext usb;
+  for (const drivers::UsbDeviceInfo& dev : usb.enumerate(id)) {
+    if (!dev.nodes.tty.empty()) return dev.nodes.tty.front();
+    throw DeviceError("USB device " + usb_id + " at " + dev.port_path() +
+                      " has no tty (is its usb-serial driver loaded?)");
+  }
+  throw DeviceError("USB device " + usb_id + " not found (plugged in?)");
+}
+
+LiveImu::LiveImu(const BoardConfig& board, drivers::ImuSampleSink& sink)
+    : parts_(std::make_unique<Parts>()) {
+  const ImuConfig& imu = board.imu;
+  if (imu.driver == "icm20948") {
+    parts_->adapter = std::make_unique<drivers::LinuxI2cAdapter>(imu.bus);
+    // Recovery on a real board means nine SCL clocks or an adapter unbind; the bus counts
+    // the attempt, the driver's full reset follows.
+    parts_->bus = std::make_unique<drivers::I2cBus>(*parts_->adapter, imu.address);
+    drivers::Icm20948::Config config;
+    config.rate_hz = imu.rate_hz;
+    config.has_data_ready = imu.data_ready.has_value();
+    if (imu.data_ready) {
+      parts_->data_ready = std::make_unique<drivers::GpioEdgeInput>(
+          drivers::GpioLineSpec{imu.data_ready->chip, static_cast<unsigned>(imu.data_ready->line),
+                                imu.data_ready->active_low},
+          "wallar-imu-drdy");
+    }
+    parts_->driver = std::make_unique<drivers::Icm20948>(*parts_->bus, config, sink);
+    char addr[8];
+    std::snprintf(addr, sizeof addr, "0x%02x", imu.address);
+    description_ = "icm20948 on " + imu.bus + " @" + addr;
+    if (imu.data_ready)
+      description_ +=
+          ", data-ready " + imu.data_ready->chip + ":" + std::to_string(imu.data_ready->line);
+  } else if (imu.driver == "bno055") {
+    drivers::Bno055UartConfig config;
+    config.device = imu.bus.empty() ? find_usb_tty(imu.usb_id) : imu.bus;
+    config.baud = imu.baud;
+    config.rate_hz = std::min(imu.rate_hz, 100.0);
+    auto driver = std::make_unique<drivers::Bno055Uart>(config, sink);
+    parts_->bno055 = driver.get();
+    parts_->driver = std::move(driver);
+    description_ = "bno055 on " + config.device + " at " + std::to_string(config.baud) + " baud";
+  } else {
+    throw_input_error(board.file.string(), 0, "the board names no IMU (imu.driver: none)");
+  }
+}
+
+LiveImu::~LiveImu() = default;
+
+const drivers::ImuDriver& LiveImu::driver() const { return *parts_->driver; }
+
+void LiveImu::run(TimeNs until_ns, const std::atomic<bool>& stop) {
+  drivers::ImuDriver& driver = *parts_->driver;
+  std::optional<TimeNs> edge_ns;
+  while (!stop.load(std::memory_order_relaxed)) {
+    TimeNs now_ns = monotonic_now_ns();
+    if (now_ns >= until_ns) return;
+    const TimeNs wake_ns = std::min(driver.step(now_ns, edge_ns), until_ns);
+    edge_ns.reset();
+    // What to wait on: the data-ready line, or the serial port's bytes.
+    int fd = -1;
+    if (parts_->data_ready) fd = parts_->data_ready->fd();
+    if (parts_->bno055) fd = parts_->bno055->fd();
+    now_ns = monotonic_now_ns();
+    // Cap each wait so a stop request is seen within 100 ms.
+    const DurationNs wait_ns = std::clamp<DurationNs>(wake_ns - now_ns, 0, 100 * kNsPerMs);
+    if (fd < 0) {
+      const timespec ts = ns_to_timespec(wait_ns);
+      ::nanosleep(&ts, nullptr);
+      continue;
+    }
+    pollfd pfd{fd, POLLIN, 0};
+    const int timeout_ms = static_cast<int>((wait_ns + kNsPerMs - 1) / kNsPerMs);
+    const int n = ::poll(&pfd, 1, timeout_ms);
+    if (n > 0 && (pfd.revents & POLLIN) != 0 && parts_->data_ready) {
+      edge_ns = parts_->data_ready->wait_edge(0);  // pending: returns at once with its stamp
+    }
+    // n < 0 (EINTR) or a timeout: step again, the driver decides what is due.
+  }
+}
+
+}  // namespace wallar::firmware
