@@ -51,25 +51,6 @@ void append_row(std::string& csv, const firmware::AttitudeRow& r) {
   csv += buf;
 }
 
-// FILE.part, then a rename: a failed or interrupted run leaves no file that looks finished.
-void write_atomically(const fs::path& path, const std::string& text) {
-  const fs::path part = path.string() + ".part";
-  std::FILE* f = std::fopen(part.c_str(), "wb");
-  if (!f) throw_input_error(path.string(), 0, "cannot create " + part.filename().string());
-  const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size();
-  const bool closed = std::fclose(f) == 0;
-  std::error_code ec;
-  if (!ok || !closed) {
-    fs::remove(part, ec);
-    throw std::runtime_error(path.string() + ": write failed");
-  }
-  fs::rename(part, path, ec);
-  if (ec) {
-    fs::remove(part, ec);
-    throw std::runtime_error(path.string() + ": cannot rename into place");
-  }
-}
-
 constexpr const char* kPlotScript =
     R"(set multiplot layout 2,1 title "Attitude filter on EuRoC V1_01: errors against ground truth"
 set grid
@@ -137,7 +118,7 @@ int run_live_imu(const ImuArgs& a) {
   if (!a.out.empty()) {
     std::string csv = kHeader;
     for (const firmware::AttitudeRow& r : sink.rows()) append_row(csv, r);
-    write_atomically(a.out, csv);
+    eval::write_file_atomically(a.out, csv);
   }
   const drivers::ImuDriver& driver = imu.driver();
   const std::string counters = drivers::format_counters(driver.counters());
@@ -202,7 +183,7 @@ int run_imu_command(const ImuArgs& a) {
           errors.end_row();
         }
       });
-  if (!a.out.empty()) write_atomically(a.out, csv);
+  if (!a.out.empty()) eval::write_file_atomically(a.out, csv);
 
   nlohmann::json j = {{"recording", a.recording},
                       {"samples", run.samples},

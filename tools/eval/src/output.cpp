@@ -78,9 +78,8 @@ OutputDir::OutputDir(fs::path dir, bool plots) : dir_(std::move(dir)), plots_(pl
   }
 }
 
-fs::path OutputDir::write(const std::string& name, std::string_view content) {
-  fs::path final_path = dir_ / name;
-  const fs::path tmp = dir_ / (name + ".part");
+void write_file_atomically(const fs::path& path, std::string_view content) {
+  const fs::path tmp = path.string() + ".part";
   std::FILE* f = std::fopen(tmp.c_str(), "wb");
   if (f == nullptr) throw_input_error(tmp.string(), 0, "cannot open for writing");
   const bool ok = std::fwrite(content.data(), 1, content.size(), f) == content.size();
@@ -89,8 +88,16 @@ fs::path OutputDir::write(const std::string& name, std::string_view content) {
     throw_input_error(tmp.string(), 0, "write failed (disk full?)");
   }
   std::error_code ec;
-  fs::rename(tmp, final_path, ec);
-  if (ec) throw_input_error(tmp.string(), 0, "cannot rename: " + ec.message());
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    std::remove(tmp.c_str());
+    throw_input_error(tmp.string(), 0, "cannot rename: " + ec.message());
+  }
+}
+
+fs::path OutputDir::write(const std::string& name, std::string_view content) {
+  fs::path final_path = dir_ / name;
+  write_file_atomically(final_path, content);
   written_.push_back(final_path);
   return final_path;
 }

@@ -37,6 +37,11 @@ class CsvTable {
   std::string text_;
 };
 
+/// Writes `content` to `path` through PATH.part and a rename, so an interrupted or failed run
+/// never leaves a file that looks complete. Throws InputError naming the file on failure
+/// (the .part is removed).
+void write_file_atomically(const std::filesystem::path& path, std::string_view content);
+
 class OutputDir {
  public:
   /// Creates `dir` and its parents; InputError naming it when that fails. With plots false,
