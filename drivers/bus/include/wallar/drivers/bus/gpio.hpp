@@ -5,7 +5,9 @@
 ///
 /// The kernel stamps each edge event in its interrupt handler with CLOCK_MONOTONIC (gpiolib
 /// cdev, v1 line events carry ktime_get_ns() in gpiod_line_event.ts): that stamp, not the
-/// time the thread woke, is when the sensor's sample became ready.
+/// time the thread woke, is when the sensor's sample became ready. (Since Linux 5.7; older
+/// kernels stamped v1 events with CLOCK_REALTIME, which would put every sample decades off:
+/// the boards we support run 6.x.)
 ///
 /// Threading: each input belongs to one thread (the thread that polls its fd); nothing is
 /// shared. wait_edge()/service() never block longer than the timeout they are given.
