@@ -441,6 +441,15 @@ struct Mode {
   const char* name;
   bool two_d;
   dsp::Sampling sampling;
+
+  /// The trial this mode runs: its sampling, and gravity (the scene's +y) in the 2-D modes.
+  [[nodiscard]] TrialSetup setup(double threshold_m) const {
+    TrialSetup s;
+    s.threshold_m = threshold_m;
+    s.sampling = sampling;
+    if (two_d) s.gravity = Eigen::Vector3d::UnitY();
+    return s;
+  }
 };
 constexpr Mode kModes[] = {{"3d-uniform", false, dsp::Sampling::kUniform},
                            {"3d-guided", false, dsp::Sampling::kGuided},
@@ -469,10 +478,7 @@ nlohmann::json sweep_runtime(Context& c) {
       std::vector<dsp::LabelledCloud> scenes;
       for (std::uint64_t seed : c.seeds()) scenes.push_back(sparse_scene(n, ratio, seed));
       for (const Mode& m : kModes) {
-        TrialSetup s;
-        s.threshold_m = c.threshold(0.05);
-        s.sampling = m.sampling;
-        if (m.two_d) s.gravity = Eigen::Vector3d::UnitY();
+        TrialSetup s = m.setup(c.threshold(0.05));
         std::vector<double> ms, rounds;
         dsp::Robustness r;
         c.trial(scenes.front(), s);  // warm-up: caches, page faults, SIMD dispatch
@@ -521,10 +527,7 @@ nlohmann::json sweep_rounds(Context& c) {
     std::vector<dsp::LabelledCloud> scenes;
     for (std::uint64_t seed : c.seeds()) scenes.push_back(sparse_scene(kPoints, ratio, seed));
     for (const Mode& m : kModes) {
-      TrialSetup s;
-      s.threshold_m = c.threshold(0.05);
-      s.sampling = m.sampling;
-      if (m.two_d) s.gravity = Eigen::Vector3d::UnitY();
+      TrialSetup s = m.setup(c.threshold(0.05));
       std::vector<double> rounds;
       dsp::Robustness r;
       for (std::size_t k = 0; k < scenes.size(); ++k) {
