@@ -75,17 +75,19 @@ class FilterSink final : public drivers::ImuSampleSink {
       ++dropped_;
       return;
     }
-    firmware::AttitudeRow r;
-    r.t_ns = sample.t_ns;
-    r.valid = filter_.update(sample);
-    r.q_world_imu = filter_.q_world_imu();
-    r.gravity_dir_imu = filter_.gravity_dir_imu();
-    r.gyro_bias_rad_s = filter_.gyro_bias_rad_s();
-    rows_.push_back(r);
+    const bool was_initialized = filter_.initialized();
+    const bool valid = filter_.update(sample);
+    if (valid && !was_initialized) {
+      // Just initialised from a still window ending here: the window's samples share its
+      // estimate, as run_attitude_filter gives them on a recording.
+      const TimeNs window_begin_ns = filter_.initial_estimate().t_begin_ns;
+      for (auto it = rows_.rbegin(); it != rows_.rend() && it->t_ns >= window_begin_ns; ++it)
+        *it = firmware::attitude_row(filter_, it->t_ns, true);
+    }
+    rows_.push_back(firmware::attitude_row(filter_, sample.t_ns, valid));
   }
   const std::vector<firmware::AttitudeRow>& rows() const { return rows_; }
   std::size_t dropped() const { return dropped_; }
-  const dsp::AttitudeFilter& filter() const { return filter_; }
 
  private:
   dsp::AttitudeFilter filter_;

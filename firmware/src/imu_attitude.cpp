@@ -16,6 +16,18 @@ dsp::AttitudeFilterConfig attitude_config_for(const recording::EurocRecording& r
   return config;
 }
 
+AttitudeRow attitude_row(const dsp::AttitudeFilter& filter, TimeNs t_ns, bool valid) {
+  AttitudeRow r;
+  r.t_ns = t_ns;
+  r.valid = valid;
+  if (valid) {
+    r.q_world_imu = filter.q_world_imu();
+    r.gravity_dir_imu = filter.gravity_dir_imu();
+    r.gyro_bias_rad_s = filter.gyro_bias_rad_s();
+  }
+  return r;
+}
+
 AttitudeRun run_attitude_filter(const recording::EurocRecording& rec,
                                 const dsp::AttitudeFilterConfig& config,
                                 const std::function<void(const AttitudeRow&)>& row) {
@@ -27,13 +39,8 @@ AttitudeRun run_attitude_filter(const recording::EurocRecording& rec,
   errors.reserve(rec.imu.size());
 
   auto emit = [&](TimeNs t_ns, bool valid) {
-    AttitudeRow r;
-    r.t_ns = t_ns;
-    r.valid = valid;
+    AttitudeRow r = attitude_row(filter, t_ns, valid);
     if (valid) {
-      r.q_world_imu = filter.q_world_imu();
-      r.gravity_dir_imu = filter.gravity_dir_imu();
-      r.gyro_bias_rad_s = filter.gyro_bias_rad_s();
       ++run.valid_rows;
       if (const auto gt = recording::ground_truth_at(rec.ground_truth, t_ns)) {
         r.error =

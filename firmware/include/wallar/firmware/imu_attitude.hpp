@@ -35,6 +35,10 @@ struct AttitudeRun {
   dsp::StaticImuEstimate initial;  //!< the still window the filter started from
 };
 
+/// The row for a sample at t_ns: the filter's current state when valid (the filter is
+/// initialised), an invalid row otherwise. Recordings and the live command build rows here.
+AttitudeRow attitude_row(const dsp::AttitudeFilter& filter, TimeNs t_ns, bool valid);
+
 /// The filter's configuration for a recording: the still window is one second at the IMU's
 /// rate from its sensor.yaml (200 samples when it has none).
 dsp::AttitudeFilterConfig attitude_config_for(const recording::EurocRecording& rec);
