@@ -2,7 +2,8 @@
 /// @file test_alloc.cpp
 /// @brief Counts heap allocations on the fixed-rate paths: after setup, a wall detection
 /// allocates nothing, nor does an attitude-filter update, nor do the BNO055 UART and ICM-20948
-/// drivers' step() in RUN. Its own executable: it replaces the global operator new.
+/// drivers' step() in RUN, nor does stereo capture (poll, DQBUF, pairing, mailbox, re-queue,
+/// a stream restart) after start(). Its own executable: it replaces the global operator new.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -11,7 +12,10 @@
 #include <new>
 
 #include "bno055_rig.hpp"
+#include "fake_v4l2.hpp"
 #include "imu_rig.hpp"
+#include "wallar/core/mailbox.hpp"
+#include "wallar/drivers/camera/stereo_capture.hpp"
 #include "wallar/dsp/imu/attitude_filter.hpp"
 #include "wallar/dsp/walls/synthetic.hpp"
 #include "wallar/dsp/walls/wall_detector.hpp"
@@ -176,6 +180,60 @@ TEST(Allocations, Icm20948StepAllocatesNothingInRun) {
   EXPECT_GT(rig.driver.counters().samples - before, 1000u);
   EXPECT_TRUE(std::any_of(rig.sink.samples.begin(), rig.sink.samples.end(),
                           [](const ImuSample& s) { return s.mag_uT.has_value(); }));
+}
+
+}  // namespace
+}  // namespace wallar::test
+
+namespace wallar::test {
+namespace {
+
+// Capture -> pairing -> newest-only mailbox -> consumer, all on this thread.
+class MailboxSink final : public source::SensorSink {
+ public:
+  void on_imu(const ImuSample&) override {}
+  void on_stereo(const StereoFrame& frame) override { box.post(frame); }
+  NewestMailbox<StereoFrame> box;
+};
+
+TEST(Allocations, StereoCaptureAllocatesNothingAfterStart) {
+  for (drivers::CameraPixelFormat format :
+       {drivers::CameraPixelFormat::kGrey, drivers::CameraPixelFormat::kYuyv}) {
+    FakeV4l2 sys;
+    FakeV4l2Device& left = sys.add_device("/dev/video0");
+    sys.add_device("/dev/video2");
+    std::array<drivers::V4l2CameraConfig, 2> configs;
+    configs[0].device = "/dev/video0";
+    configs[1].device = "/dev/video2";
+    for (auto& c : configs) {
+      c.width_px = 64;
+      c.height_px = 48;
+      c.format = format;
+    }
+    MailboxSink sink;
+    drivers::StereoCapture capture(sys, configs, sink);
+    capture.start();
+    StereoFrame taken;
+    int pairs = 0;
+    for (int i = 0; i < 50; ++i) capture.run_once(100 * kNsPerMs);  // warm up
+    std::size_t allocations = 0;
+    {
+      AllocationCounter counter;
+      while (pairs < 100) {
+        capture.run_once(100 * kNsPerMs);
+        if (!sink.box.take(taken)) continue;
+        if (++pairs == 50) {
+          left.stall_until_restart();  // the restart rung of the recovery ladder too
+          left.eagain_storm(3);
+        }
+      }
+      taken = StereoFrame{};
+      allocations = counter.count();
+    }
+    EXPECT_EQ(allocations, 0u) << "format " << static_cast<int>(format);
+    EXPECT_EQ(capture.camera(0).counters().stream_restarts, 1u);
+    EXPECT_GE(capture.pairing().pairs, 100u);
+  }
 }
 
 }  // namespace
