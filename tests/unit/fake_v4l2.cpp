@@ -95,11 +95,17 @@ void FakeV4l2Device::produce(TimeNs t_ns) {
   BufInfo& info = queue_->info[static_cast<std::size_t>(index)];
   std::vector<std::uint8_t>& mem = queue_->memory[static_cast<std::size_t>(index)];
   const int w = spec_.width_px, h = spec_.height_px;
-  if (fourcc_ == V4L2_PIX_FMT_MJPEG) {
+  const bool render =
+      spec_.render_every_frame || produced_ < static_cast<std::uint64_t>(buffer_count_);
+  if (fourcc_ == V4L2_PIX_FMT_MJPEG && !render && !first_jpeg_.empty()) {
+    std::memcpy(mem.data(), first_jpeg_.data(), std::min(first_jpeg_.size(), mem.size()));
+    info.bytesused = static_cast<std::uint32_t>(std::min(first_jpeg_.size(), mem.size()));
+  } else if (fourcc_ == V4L2_PIX_FMT_MJPEG) {
     Image gray = Image::allocate(w, h, PixelFormat::kGray8);
     for (int y = 0; y < h; ++y)
       for (int x = 0; x < w; ++x) gray.mutable_data()[y * w + x] = pattern(produced_, x, y);
     std::vector<std::uint8_t> jpeg = recording::encode_jpeg_gray(gray, 95, true);
+    if (!spec_.render_every_frame && first_jpeg_.empty()) first_jpeg_ = jpeg;
     if (corrupt_jpeg_next_) {
       jpeg.resize(jpeg.size() / 2);
       corrupt_jpeg_next_ = false;
@@ -108,7 +114,7 @@ void FakeV4l2Device::produce(TimeNs t_ns) {
     info.bytesused = static_cast<std::uint32_t>(std::min(jpeg.size(), mem.size()));
   } else {
     const int bpp = bytes_per_pixel(fourcc_);
-    for (int y = 0; y < h; ++y) {
+    for (int y = 0; render && y < h; ++y) {
       std::uint8_t* row = mem.data() + static_cast<std::ptrdiff_t>(y) * w * bpp;
       for (int x = 0; x < w; ++x) {
         row[x * bpp] = pattern(produced_, x, y);

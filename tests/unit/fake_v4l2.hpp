@@ -52,6 +52,9 @@ struct FakeCameraSpec {
   DurationNs phase_ns = 0;          //!< offset of this device's frame times
   bool triggered = false;           //!< frames only on trigger()
   int max_buffers = 32;
+  /// Draw the test pattern into every frame; when false (benchmarks) the buffers keep the first
+  /// frame's pixels, and MJPG frames are the first frame's encoding.
+  bool render_every_frame = true;
 };
 
 class FakeV4l2;
@@ -120,6 +123,7 @@ class FakeV4l2Device {
   bool stall_until_streamon_ = false;
   bool repeat_timestamp_ = false, error_next_ = false, short_next_ = false;
   bool corrupt_jpeg_next_ = false;
+  std::vector<std::uint8_t> first_jpeg_;  //!< render_every_frame == false
   int eagain_left_ = 0;
   unsigned long fail_request_ = 0;  // NOLINT(google-runtime-int)
   int fail_errno_ = 0, fail_left_ = 0;
