@@ -384,6 +384,20 @@ imu_live)
   run imu --board "$src/board/rpi5.yaml" --seconds 0; expect_rc 2; one_err_line
   expect_err "--seconds: must be in (0, 86400]"
   ;;
+record_live)
+  # Live recording on a machine without the board's cameras: the device is named, exit 1, and
+  # no recording folder is created.
+  sed -e '/^calibration:/d' -e '/^  trigger:/,/^    line: 23/d' "$src/board/rpi5.yaml" \
+    | sed -e '/^imu:/,/^display:/{/^display:/!d}' -e 's/^display:/imu:\n  driver: none\ndisplay:/' \
+    > "$tmp/live.yaml"
+  run record --board "$tmp/live.yaml" --out "$tmp/rec" --duration-s 1; expect_rc 1
+  one_err_line; expect_err "left /dev/v4l/by-path/platform-xhci-hcd.1-usb-0:1:1.0-video-index0: cannot open"
+  [ -e "$tmp/rec" ] && fail "a failed live recording left a folder"
+  # The Pi board's calibration file is the first thing missing here (bad input: exit 2).
+  run record --board "$src/board/rpi5.yaml" --out "$tmp/rec" --duration-s 1; expect_rc 2
+  one_err_line; expect_err "/etc/wallar/calibration/camchain.yaml"
+  [ -e "$tmp/rec" ] && fail "a failed live recording left a folder"
+  ;;
 calibrate_imu_cam)
   # The bundled cut stands still: the rotation cannot be determined, and the command says why.
   run calibrate imu-cam "$rec"; expect_rc 2; one_err_line

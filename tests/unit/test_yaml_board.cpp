@@ -6,6 +6,7 @@
 #include "test_support.hpp"
 #include "wallar/drivers/config/yaml.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/live_stereo.hpp"
 
 namespace wallar::test {
 namespace {
@@ -71,6 +72,16 @@ TEST(Board, TheShippedBoardFilesLoad) {
   EXPECT_EQ(pi.display.connector, "HDMI-A-1");
   ASSERT_TRUE(pi.exit_button);
   EXPECT_TRUE(pi.exit_button->active_low);
+
+  // What the camera driver gets from it.
+  const auto cams = firmware::camera_configs(pi);
+  EXPECT_EQ(cams[0].name, "left");
+  EXPECT_EQ(cams[1].name, "right");
+  EXPECT_EQ(cams[0].device, pi.cameras[0].device);
+  EXPECT_EQ(cams[1].usb_id, "32e4:9750");
+  EXPECT_EQ(cams[0].format, drivers::CameraPixelFormat::kYuyv);
+  EXPECT_EQ(cams[0].width_px, 640);
+  EXPECT_DOUBLE_EQ(cams[1].fps, 30.0);
 }
 
 constexpr const char* kLiveBoard = R"(board:

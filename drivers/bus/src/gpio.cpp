@@ -22,7 +22,7 @@ namespace {
 // Opens the chip and requests the line for the given edge events; on error releases what it
 // got and throws.
 void open_line(const GpioLineSpec& spec, const char* consumer, int request_type, int flags,
-               gpiod_chip*& chip, gpiod_line*& line) {
+               gpiod_chip*& chip, gpiod_line*& line, int initial_value = 0) {
   errno = 0;
   chip = gpiod_chip_open_lookup(spec.chip.c_str());
   if (chip == nullptr) fail(spec, "cannot open GPIO chip", errno != 0 ? errno : ENODEV);
@@ -34,7 +34,7 @@ void open_line(const GpioLineSpec& spec, const char* consumer, int request_type,
     fail(spec, "no such line", err);
   }
   gpiod_line_request_config config{consumer, request_type, flags};
-  if (gpiod_line_request(line, &config, 0) < 0) {
+  if (gpiod_line_request(line, &config, initial_value) < 0) {
     const int err = errno;
     gpiod_chip_close(chip);
     chip = nullptr;
@@ -65,6 +65,22 @@ GpioEdgeInput::~GpioEdgeInput() {
 }
 
 int GpioEdgeInput::fd() const { return gpiod_line_event_get_fd(line_); }
+
+GpioOutput::GpioOutput(const GpioLineSpec& spec, const char* consumer)
+    : active_low_(spec.active_low) {
+  // Physical levels, no ACTIVE_LOW flag: the start value is then unambiguous (de-asserted).
+  open_line(spec, consumer, GPIOD_LINE_REQUEST_DIRECTION_OUTPUT, 0, chip_, line_,
+            spec.active_low ? 1 : 0);
+}
+
+GpioOutput::~GpioOutput() {
+  if (line_ != nullptr) gpiod_line_release(line_);
+  if (chip_ != nullptr) gpiod_chip_close(chip_);
+}
+
+void GpioOutput::set(bool asserted) {
+  if (gpiod_line_set_value(line_, asserted != active_low_ ? 1 : 0) < 0) ++errors_;
+}
 
 std::optional<TimeNs> GpioEdgeInput::wait_edge(DurationNs timeout_ns) {
   const timespec ts = to_timespec(timeout_ns);

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file gpio.hpp
-/// @brief GPIO inputs through libgpiod v1 (1.6): a data-ready edge line with kernel timestamps
-/// and a debounced button, plus the pure pieces (timestamp conversion, debounce) they use.
+/// @brief GPIO through libgpiod v1 (1.6): a data-ready edge line with kernel timestamps, a
+/// debounced button, an output (camera trigger), plus the pure pieces (timestamp conversion,
+/// debounce) they use.
 ///
 /// The kernel stamps each edge event in its interrupt handler with CLOCK_MONOTONIC (gpiolib
 /// cdev, v1 line events carry ktime_get_ns() in gpiod_line_event.ts): that stamp, not the
@@ -58,6 +59,26 @@ class GpioEdgeInput {
  private:
   gpiod_chip* chip_ = nullptr;
   gpiod_line* line_ = nullptr;
+  std::uint64_t errors_ = 0;
+};
+
+/// An output line (a camera trigger): requested as output, initially de-asserted.
+/// set(true) drives the asserted level (low when active_low).
+class GpioOutput {
+ public:
+  /// Throws wallar::DeviceError "CHIP line N: cannot ...: STRERROR" as GpioEdgeInput does.
+  GpioOutput(const GpioLineSpec& spec, const char* consumer);
+  ~GpioOutput();
+  GpioOutput(const GpioOutput&) = delete;
+  GpioOutput& operator=(const GpioOutput&) = delete;
+  /// Drives the line; a failure is counted in errors(), never thrown (fixed-rate callers).
+  void set(bool asserted);
+  [[nodiscard]] std::uint64_t errors() const { return errors_; }
+
+ private:
+  gpiod_chip* chip_ = nullptr;
+  gpiod_line* line_ = nullptr;
+  bool active_low_ = false;
   std::uint64_t errors_ = 0;
 };
 

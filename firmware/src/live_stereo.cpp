@@ -1,0 +1,112 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file live_stereo.cpp
+/// @brief Opening the board's cameras and the capture thread's loop.
+#include "wallar/firmware/live_stereo.hpp"
+
+#include <cstdio>
+#include <cstring>
+
+#include "wallar/core/error.hpp"
+#include "wallar/drivers/bus/gpio.hpp"
+#include "wallar/drivers/camera/uvc_reset.hpp"
+
+namespace wallar::firmware {
+namespace {
+
+// The board's trigger line as the capture's trigger output.
+class GpioTrigger final : public drivers::TriggerOutput {
+ public:
+  explicit GpioTrigger(const GpioLine& line)
+      : out_(drivers::GpioLineSpec{line.chip, static_cast<unsigned>(line.line), line.active_low},
+             "wallar-camera-trigger") {}
+  void set(bool asserted) override { out_.set(asserted); }
+
+ private:
+  drivers::GpioOutput out_;
+};
+
+}  // namespace
+
+std::array<drivers::V4l2CameraConfig, 2> camera_configs(const BoardConfig& board) {
+  std::array<drivers::V4l2CameraConfig, 2> out;
+  for (int i = 0; i < 2; ++i) {
+    const CameraConfig& c = board.cameras[i];
+    drivers::V4l2CameraConfig& k = out[static_cast<std::size_t>(i)];
+    k.name = i == 0 ? "left" : "right";
+    if (c.device.empty())
+      throw_input_error(board.file.string(), 0,
+                        std::string("cameras.") + k.name + ".device is required for live capture");
+    k.device = c.device;
+    k.usb_id = c.usb_id;
+    k.width_px = c.width_px;
+    k.height_px = c.height_px;
+    k.fps = c.fps;
+    const auto format = drivers::parse_camera_pixel_format(c.pixel_format);
+    if (!format)
+      throw_input_error(board.file.string(), 0,
+                        "cameras." + k.name + ".format: unknown '" + c.pixel_format + "'");
+    k.format = *format;
+  }
+  return out;
+}
+
+struct LiveStereo::Parts {
+  drivers::LinuxV4l2System sys;
+  std::unique_ptr<GpioTrigger> trigger;
+  std::unique_ptr<drivers::StereoCapture> capture;
+  std::array<std::string, 2> names;
+  Log log;
+};
+
+LiveStereo::LiveStereo(const BoardConfig& board, source::SensorSink& sink, Log log)
+    : parts_(std::make_unique<Parts>()) {
+  const auto configs = camera_configs(board);
+  parts_->names = {configs[0].name + " camera (" + configs[0].device + ")",
+                   configs[1].name + " camera (" + configs[1].device + ")"};
+  parts_->log = log ? std::move(log)
+                    : [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
+  if (board.camera_trigger) parts_->trigger = std::make_unique<GpioTrigger>(*board.camera_trigger);
+  drivers::StereoCaptureConfig sc;
+  if (board.sync_tolerance_ms > 0.0)
+    sc.tolerance_ns = static_cast<DurationNs>(board.sync_tolerance_ms * 1e6);
+  Parts* parts = parts_.get();
+  sc.on_state = [parts](int cam, drivers::CameraState state, const char* reason, int err) {
+    std::string line = "wallar: " + parts->names[static_cast<std::size_t>(cam)] + ": " +
+                       drivers::to_string(state) + " (" + reason;
+    if (err != 0) line += std::string(": ") + std::strerror(err);
+    line += ")";
+    const bool both = parts->capture != nullptr && parts->capture->both_streaming();
+    line += both ? "; stereo pairs again" : "; no stereo pairs meanwhile, the IMU stream goes on";
+    parts->log(line);
+  };
+  parts_->capture = std::make_unique<drivers::StereoCapture>(
+      parts_->sys, configs, sink, std::move(sc), parts_->trigger.get(), drivers::reset_uvc_camera);
+  parts_->capture->start();
+}
+
+LiveStereo::~LiveStereo() = default;
+
+const drivers::StereoCapture& LiveStereo::capture() const { return *parts_->capture; }
+
+std::string LiveStereo::description() const {
+  std::string out;
+  for (int i = 0; i < 2; ++i) {
+    const drivers::V4l2Camera& cam = parts_->capture->camera(i);
+    const drivers::V4l2Negotiated& n = cam.negotiated();
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "%s%s %s %dx%d %s %.1f Hz (%s)", i == 0 ? "" : "; ",
+                  cam.config().name.c_str(), cam.config().device.c_str(), n.width_px, n.height_px,
+                  drivers::fourcc_to_string(n.fourcc).c_str(), n.fps, n.driver.c_str());
+    out += buf;
+  }
+  return out;
+}
+
+void LiveStereo::run(TimeNs until_ns, const std::atomic<bool>& stop) {
+  drivers::StereoCapture& capture = *parts_->capture;
+  while (!stop.load(std::memory_order_relaxed) && parts_->sys.now_ns() < until_ns)
+    capture.run_once(50 * kNsPerMs);  // a stop request is seen within 50 ms
+  capture.stop();
+}
+
+}  // namespace wallar::firmware
