@@ -19,7 +19,7 @@ find_package(hwy REQUIRED)  # Highway: portable SIMD with run-time dispatch
 
 # calib3d and features2d: on arm64 only their runtime packages (libopencv-*406) can be installed
 # beside the amd64 ones; the headers come from the host's OpenCV packages.
-set(WALLAR_OPENCV_MODULES core imgproc flann features2d calib3d)
+set(WALLAR_OPENCV_MODULES core imgproc flann features2d calib3d video)
 find_package(OpenCV QUIET COMPONENTS ${WALLAR_OPENCV_MODULES})
 if(OpenCV_FOUND)
   set(WALLAR_OPENCV_LIBS ${OpenCV_LIBS})

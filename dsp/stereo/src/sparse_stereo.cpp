@@ -4,63 +4,19 @@
 #include "wallar/dsp/stereo/sparse_stereo.hpp"
 
 #include <cmath>
-#include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
-#include <opencv2/imgproc.hpp>
-#include <stdexcept>
 
 namespace wallar::dsp {
-namespace {
-
-cv::Mat wrap(const Image& img) {
-  if (img.empty() || img.format() != PixelFormat::kGray8) {
-    throw std::invalid_argument("sparse stereo needs 8-bit gray images");
-  }
-  // A header over the buffer: no pixel copy (OpenCV only reads it).
-  return cv::Mat(img.height(), img.width(), CV_8UC1, const_cast<std::uint8_t*>(img.data()),
-                 static_cast<std::size_t>(img.stride_bytes()));
-}
-
-cv::Matx33d intrinsics(const CameraCalibration& c) {
-  return {c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0};
-}
-
-}  // namespace
-
-SparseStereo::SparseStereo(const RigCalibration& rig, SparseStereoParams params) : params_(params) {
-  const CameraCalibration& l = rig.cams[0];
-  const CameraCalibration& r = rig.cams[1];
-  if (l.distortion_model != "radial-tangential" || r.distortion_model != "radial-tangential") {
-    throw std::invalid_argument("sparse stereo supports radial-tangential cameras only");
-  }
-  // OpenCV wants the transform from the left to the right camera: T_cam1_cam0.
-  const SE3d T_cam1_cam0 = rig.T_cam0_cam1().inverse();
-  cv::Matx33d R;
-  cv::Vec3d t;
-  for (int i = 0; i < 3; ++i) {
-    t[i] = T_cam1_cam0.translation()[i];
-    for (int j = 0; j < 3; ++j) R(i, j) = T_cam1_cam0.linear()(i, j);
-  }
-  const cv::Size size(l.width_px, l.height_px);
-  cv::Mat R1, R2, P1, P2, Q;
-  cv::stereoRectify(intrinsics(l), cv::Mat(l.distortion), intrinsics(r), cv::Mat(r.distortion),
-                    size, R, t, R1, R2, P1, P2, Q, cv::CALIB_ZERO_DISPARITY, 0.0);
-  cv::initUndistortRectifyMap(intrinsics(l), cv::Mat(l.distortion), R1, P1, size, CV_16SC2, map_lx_,
-                              map_ly_);
-  cv::initUndistortRectifyMap(intrinsics(r), cv::Mat(r.distortion), R2, P2, size, CV_16SC2, map_rx_,
-                              map_ry_);
-  R1_ = cv::Matx33d(R1);
-  f_px_ = P1.at<double>(0, 0);
-  cx_ = P1.at<double>(0, 2);
-  cy_ = P1.at<double>(1, 2);
-  baseline_m_ = -P2.at<double>(0, 3) / P2.at<double>(0, 0);
-}
+SparseStereo::SparseStereo(const RigCalibration& rig, SparseStereoParams params)
+    : params_(params), rectifier_(rig) {}
 
 PointCloud SparseStereo::triangulate(const Image& left, const Image& right,
                                      SparseStereoStats* stats) {
-  cv::Mat rl, rr;
-  cv::remap(wrap(left), rl, map_lx_, map_ly_, cv::INTER_LINEAR);
-  cv::remap(wrap(right), rr, map_rx_, map_ry_, cv::INTER_LINEAR);
+  rectifier_.rectify(left, right);
+  const cv::Mat& rl = rectifier_.left();
+  const cv::Mat& rr = rectifier_.right();
+  const double f_px = rectifier_.f_px(), cx = rectifier_.cx(), cy = rectifier_.cy();
+  const double baseline_m = rectifier_.baseline_m();
   const cv::Ptr<cv::ORB> orb = cv::ORB::create(params_.max_features);
   std::vector<cv::KeyPoint> kl, kr;
   cv::Mat dl, dr;
@@ -74,7 +30,7 @@ PointCloud SparseStereo::triangulate(const Image& left, const Image& right,
     cv::BFMatcher matcher(cv::NORM_HAMMING, /*crossCheck=*/true);
     std::vector<cv::DMatch> matches;
     matcher.match(dl, dr, matches);
-    const cv::Matx33d R1t = R1_.t();
+    const cv::Matx33d R1t = rectifier_.R(0).t();
     for (const cv::DMatch& m : matches) {
       if (m.distance > params_.max_hamming) continue;
       const cv::Point2f pl = kl[static_cast<std::size_t>(m.queryIdx)].pt;
@@ -83,9 +39,9 @@ PointCloud SparseStereo::triangulate(const Image& left, const Image& right,
       const double disparity = pl.x - pr.x;
       if (!(disparity > 0.0)) continue;
       ++st.matches;
-      const double z = f_px_ * baseline_m_ / disparity;
+      const double z = f_px * baseline_m / disparity;
       if (z < params_.min_depth_m || z > params_.max_depth_m) continue;
-      const cv::Vec3d p_rect((pl.x - cx_) * z / f_px_, (0.5 * (pl.y + pr.y) - cy_) * z / f_px_, z);
+      const cv::Vec3d p_rect((pl.x - cx) * z / f_px, (0.5 * (pl.y + pr.y) - cy) * z / f_px, z);
       const cv::Vec3d p = R1t * p_rect;  // back to the left camera's own frame
       cloud.push_back(Eigen::Vector3f(static_cast<float>(p[0]), static_cast<float>(p[1]),
                                       static_cast<float>(p[2])));

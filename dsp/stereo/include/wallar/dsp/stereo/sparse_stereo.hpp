@@ -15,6 +15,7 @@
 #include "wallar/core/image.hpp"
 #include "wallar/core/point_cloud.hpp"
 #include "wallar/core/stereo_frame.hpp"
+#include "wallar/dsp/stereo/rectifier.hpp"
 
 namespace wallar::dsp {
 
@@ -37,13 +38,11 @@ class SparseStereo {
   /// Points in the (unrectified) left camera frame: x right, y down, z forward [m].
   PointCloud triangulate(const Image& left, const Image& right, SparseStereoStats* stats = nullptr);
 
-  [[nodiscard]] double baseline_m() const { return baseline_m_; }
+  [[nodiscard]] double baseline_m() const { return rectifier_.baseline_m(); }
 
  private:
   SparseStereoParams params_;
-  cv::Mat map_lx_, map_ly_, map_rx_, map_ry_;
-  cv::Matx33d R1_;  //!< left camera -> rectified left
-  double f_px_ = 0.0, cx_ = 0.0, cy_ = 0.0, baseline_m_ = 0.0;
+  Rectifier rectifier_;
 };
 
 /// A sparse map of several stereo pairs, all in the first pair's left camera frame.
