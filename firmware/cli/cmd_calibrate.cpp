@@ -77,6 +77,7 @@ void add_calibrate_command(CLI::App& app, std::function<int()>& run) {
       ->capture_default_str();
   cmd->add_flag("--json", a->json, "Print the result as JSON on stdout");
   cmd->callback([a, &run] { run = [a] { return run_imu_cam(*a); }; });
+  add_calibrate_stereo_commands(*calibrate, run);
 }
 
 }  // namespace wallar::cli

@@ -9,6 +9,7 @@
 
 #include "commands.hpp"
 #include "wallar/core/error.hpp"
+#include "wallar/drivers/recording/calibration_files.hpp"
 #include "wallar/drivers/source/recorder_sink.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/live_imu.hpp"
@@ -67,7 +68,7 @@ class SerialisedSink final : public source::SensorSink, public drivers::ImuSampl
 // The rig written to the recording's sensor.yaml files: the board's calibration when it names
 // one, else the cameras' sizes and rates only (intrinsics unknown: calibrate afterwards).
 RigCalibration live_rig(const firmware::BoardConfig& board) {
-  if (board.calibration) return recording::read_euroc_imu(*board.calibration).rig();
+  if (board.calibration) return recording::read_rig_calibration(*board.calibration);
   RigCalibration rig;
   for (int i = 0; i < 2; ++i) {
     CameraCalibration& c = rig.cams[static_cast<std::size_t>(i)];

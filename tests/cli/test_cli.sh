@@ -398,6 +398,60 @@ record_live)
   one_err_line; expect_err "/etc/wallar/calibration/camchain.yaml"
   [ -e "$tmp/rec" ] && fail "a failed live recording left a folder"
   ;;
+calibrate_stereo)
+  # OpenCV's 13 real chessboard pairs: the issue's targets, and every output file readable.
+  cal="$src/tests/data/opencv_stereo_calib"
+  run calibrate stereo --left "$cal/left*.jpg" --right "$cal/right*.jpg" --board-size 9x6 \
+    --square-m 0.025 --out "$tmp/stereo.yaml" --kalibr "$tmp/camchain.yaml" --json "$tmp/cal.json"
+  expect_rc 0; expect_out "pairs used"
+  cp "$tmp/cal.json" "$tmp/out"
+  [ "$(json "sorted(k for k in ['rms_px','views_used','left','right','baseline_m'] if k in d)")" \
+    = "['baseline_m', 'left', 'right', 'rms_px', 'views_used']" ] || fail "summary keys"
+  [ "$(json "d['rms_px'] < 0.5")" = True ] || fail "rms $(json "d['rms_px']")"
+  [ "$(json "all(abs(d[s][f] / 535.9 - 1) < 0.02 for s in ('left','right') for f in ('fx','fy'))")" \
+    = True ] || fail "focal lengths"
+  [ "$(json "len(d['left']['dist'])")" = 4 ] || fail "distortion"
+  [ "$(json "d['views_used'] >= 11 and d['no_corners'] == []")" = True ] || fail "views"
+  [ "$(json "abs(d['baseline_m'] - 0.083) < 0.01")" = True ] || fail "baseline"
+  # The files it wrote calibrate a check, both formats (the check itself: rectify_check).
+  printf '# one pair\n%s %s\n' "$cal/left05.jpg" "$cal/right05.jpg" > "$tmp/pairs.txt"
+  run calibrate rectify-check --calibration "$tmp/stereo.yaml" --list "$tmp/pairs.txt" --json
+  expect_rc 0; [ "$(json "d['pairs']")" = 1 ] || fail "pairs from the list"
+  run calibrate rectify-check --calibration "$tmp/camchain.yaml" --list "$tmp/pairs.txt"
+  expect_rc 0; expect_out "1 pairs"
+  ;;
+calibrate_stereo_bad_input)
+  cal="$src/tests/data/opencv_stereo_calib"
+  run calibrate stereo --left "$tmp/none*.jpg" --right "$cal/right*.jpg"; expect_rc 2
+  one_err_line; expect_err "--left '$tmp/none*.jpg': no file matches"
+  run calibrate stereo --left "$cal/left*.jpg" --right "$cal/right0*.jpg"; expect_rc 2
+  one_err_line; expect_err "--left matches 13 files but --right 9"
+  run calibrate stereo --left "$cal/left*.jpg" --right "$cal/right*.jpg" --board-size 9by6
+  expect_rc 2; one_err_line; expect_err "--board-size '9by6': want the inner corners"
+  run calibrate stereo --left "$cal/left*.jpg" --right "$cal/right*.jpg" --board-size 12x12 \
+    --out "$tmp/c.yaml" --json "$tmp/c.json"
+  expect_rc 2; one_err_line; expect_err "was found in both images of only 0 of 13 pairs"
+  [ -e "$tmp/c.yaml" ] || [ -e "$tmp/c.json" ] && fail "a failed calibration left a file"
+  printf 'left01.jpg\n' > "$tmp/list.txt"
+  run calibrate stereo --list "$tmp/list.txt"; expect_rc 2; one_err_line
+  expect_err "list.txt:1: want two image paths, 'LEFT RIGHT'"
+  printf 'not a jpeg at all' > "$tmp/bad.jpg"; cp "$tmp/bad.jpg" "$tmp/bad2.jpg"
+  run calibrate stereo --left "$tmp/bad.jpg" --right "$tmp/bad2.jpg"; expect_rc 2; one_err_line
+  expect_err "bad.jpg: corrupt JPEG"
+  run calibrate rectify-check --calibration "$tmp/nope.yaml" --recording "$rec"; expect_rc 2
+  one_err_line; expect_err "nope.yaml: no such calibration file or folder"
+  run calibrate rectify-check --calibration "$cal/intrinsics.yml" --recording "$rec"; expect_rc 2
+  one_err_line; expect_err "intrinsics.yml"
+  ;;
+rectify_check)
+  # EuRoC's own calibration rectifies its pairs to well under half a pixel; a threshold turns
+  # the check into a pass/fail for hardware-in-the-loop runs.
+  run calibrate rectify-check --recording "$rec" --json; expect_rc 0
+  [ "$(json "d['matches'] > 1000 and d['mean_px'] < 0.5")" = True ] || fail "$(cat "$tmp/out")"
+  run calibrate rectify-check --recording "$rec" --max-mean-px 0.5; expect_rc 0
+  run calibrate rectify-check --recording "$rec" --max-mean-px 0.01; expect_rc 1; one_err_line
+  expect_err "exceeds --max-mean-px 0.010"
+  ;;
 calibrate_imu_cam)
   # The bundled cut stands still: the rotation cannot be determined, and the command says why.
   run calibrate imu-cam "$rec"; expect_rc 2; one_err_line
