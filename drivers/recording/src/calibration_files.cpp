@@ -3,6 +3,7 @@
 /// @brief OpenCV and Kalibr calibration files.
 #include "wallar/drivers/recording/calibration_files.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
@@ -60,9 +61,18 @@ SE3d rigid(const config::YamlNode& node) {
 }
 
 void check_camera(const config::YamlNode& node, const CameraCalibration& c) {
-  if (!(c.fx > 0.0 && c.fy > 0.0)) node.fail("focal lengths must be positive");
-  if (!(c.width_px >= 1 && c.width_px <= 16384 && c.height_px >= 1 && c.height_px <= 16384))
-    node.fail("image size must be 1..16384 pixels");
+  if (!(c.fx > 0.0 && c.fy > 0.0 && std::isfinite(c.fx) && std::isfinite(c.fy)))
+    node.fail("focal lengths must be positive");
+  if (!std::isfinite(c.cx) || !std::isfinite(c.cy)) node.fail("principal point must be finite");
+  for (const double d : c.distortion)
+    if (!std::isfinite(d)) node.fail("distortion coefficients must be finite");
+}
+
+// Checked before converting: a double or int64 outside int's range makes the cast undefined.
+int pixels(const config::YamlNode& node, double v) {
+  if (!(v >= 1.0 && v <= 16384.0) || v != std::floor(v))
+    node.fail("must be a pixel count in 1..16384");
+  return static_cast<int>(v);
 }
 
 CameraCalibration kalibr_camera(const config::YamlNode& cam, int index) {
@@ -76,8 +86,8 @@ CameraCalibration kalibr_camera(const config::YamlNode& cam, int index) {
   c.cx = k[2];
   c.cy = k[3];
   const std::vector<double> res = cam.at("resolution").as_doubles(2);
-  c.width_px = static_cast<int>(res[0]);
-  c.height_px = static_cast<int>(res[1]);
+  c.width_px = pixels(cam.at("resolution"), res[0]);
+  c.height_px = pixels(cam.at("resolution"), res[1]);
   const std::string dm = cam.get_string("distortion_model", "radtan");
   if (dm == "radtan") {
     c.distortion_model = "radial-tangential";
@@ -114,8 +124,8 @@ RigCalibration parse_kalibr(const config::YamlNode& root) {
 
 RigCalibration parse_opencv(const config::YamlNode& root) {
   RigCalibration rig;
-  const int w = static_cast<int>(root.at("image_width").as_int());
-  const int h = static_cast<int>(root.at("image_height").as_int());
+  const int w = pixels(root.at("image_width"), root.at("image_width").as_double());
+  const int h = pixels(root.at("image_height"), root.at("image_height").as_double());
   for (int i = 0; i < 2; ++i) {
     const std::string idx = std::to_string(i + 1);
     const config::YamlNode* K = root.find("K" + idx);
@@ -144,15 +154,13 @@ RigCalibration parse_opencv(const config::YamlNode& root) {
     c.distortion = d;
     check_camera(*K, c);
   }
-  const Eigen::MatrixXd R = root.at("R").as_matrix(3, 3);
-  const Eigen::MatrixXd T = root.at("T").as_matrix(3, 1);
-  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
-  m.topLeftCorner<3, 3>() = R;
-  m.topRightCorner<3, 1>() = T;
-  const Eigen::Matrix3d R3 = R;
-  if (!((R3.transpose() * R3 - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-3) ||
+  const Eigen::Matrix3d R3 = root.at("R").as_matrix(3, 3);
+  const Eigen::Vector3d T = root.at("T").as_matrix(3, 1);
+  if (!R3.allFinite() ||
+      !((R3.transpose() * R3 - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-3) ||
       !(R3.determinant() > 0.0))
     root.at("R").fail("is not a rotation");
+  if (!T.allFinite()) root.at("T").fail("must be finite");
   SE3d T_cam1_cam0 = SE3d::Identity();
   T_cam1_cam0.linear() = R3;
   T_cam1_cam0.translation() = T;
