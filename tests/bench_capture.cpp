@@ -15,13 +15,6 @@
 namespace wallar::test {
 namespace {
 
-class MailboxSink final : public source::SensorSink {
- public:
-  void on_imu(const ImuSample&) override {}
-  void on_stereo(const StereoFrame& frame) override { box.post(frame); }
-  NewestMailbox<StereoFrame> box;
-};
-
 void BM_CaptureToPair(benchmark::State& state) {
   const auto format = static_cast<drivers::CameraPixelFormat>(state.range(0));
   const int width = static_cast<int>(state.range(1));

@@ -35,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "wallar/core/mailbox.hpp"
 #include "wallar/drivers/camera/stereo_capture.hpp"
 #include "wallar/drivers/camera/v4l2_system.hpp"
 
@@ -166,6 +167,14 @@ class FakeV4l2 final : public drivers::V4l2System {
   std::map<const void*, std::shared_ptr<void>> mappings_;
   TimeNs now_ns_ = 1000 * kNsPerS;
   int eintr_ioctls_ = 0, eintr_polls_ = 0;
+};
+
+/// Capture's sink toward the tracker: each pair posted to a newest-only mailbox.
+class MailboxSink final : public source::SensorSink {
+ public:
+  void on_imu(const ImuSample&) override {}
+  void on_stereo(const StereoFrame& frame) override { box.post(frame); }
+  NewestMailbox<StereoFrame> box;
 };
 
 /// A trigger line wired to every triggered fake device.

@@ -189,13 +189,6 @@ namespace wallar::test {
 namespace {
 
 // Capture -> pairing -> newest-only mailbox -> consumer, all on this thread.
-class MailboxSink final : public source::SensorSink {
- public:
-  void on_imu(const ImuSample&) override {}
-  void on_stereo(const StereoFrame& frame) override { box.post(frame); }
-  NewestMailbox<StereoFrame> box;
-};
-
 TEST(Allocations, StereoCaptureAllocatesNothingAfterStart) {
   for (drivers::CameraPixelFormat format :
        {drivers::CameraPixelFormat::kGrey, drivers::CameraPixelFormat::kYuyv}) {

@@ -63,29 +63,27 @@ const char* to_string(CameraState state) {
 }
 
 std::string format_counters(const CameraCounters& c) {
-  char buf[512];
-  std::snprintf(buf, sizeof buf,
-                "frames=%llu dropped=%llu sequence_errors=%llu non_monotonic=%llu corrupt=%llu "
-                "pool_exhausted=%llu eagain=%llu eintr=%llu io_errors=%llu timeouts=%llu "
-                "stream_restarts=%llu disconnects=%llu reopens=%llu reopen_failures=%llu "
-                "usb_resets=%llu timestamp_fallbacks=%llu",
-                static_cast<unsigned long long>(c.frames),           // NOLINT(google-runtime-int)
-                static_cast<unsigned long long>(c.dropped),          // NOLINT(google-runtime-int)
-                static_cast<unsigned long long>(c.sequence_errors),  // NOLINT
-                static_cast<unsigned long long>(c.non_monotonic),    // NOLINT
-                static_cast<unsigned long long>(c.corrupt),          // NOLINT
-                static_cast<unsigned long long>(c.pool_exhausted),   // NOLINT
-                static_cast<unsigned long long>(c.eagain),           // NOLINT
-                static_cast<unsigned long long>(c.eintr),            // NOLINT
-                static_cast<unsigned long long>(c.io_errors),        // NOLINT
-                static_cast<unsigned long long>(c.timeouts),         // NOLINT
-                static_cast<unsigned long long>(c.stream_restarts),  // NOLINT
-                static_cast<unsigned long long>(c.disconnects),      // NOLINT
-                static_cast<unsigned long long>(c.reopens),          // NOLINT
-                static_cast<unsigned long long>(c.reopen_failures),  // NOLINT
-                static_cast<unsigned long long>(c.usb_resets),       // NOLINT
-                static_cast<unsigned long long>(c.timestamp_fallbacks));  // NOLINT
-  return buf;
+  const std::pair<const char*, std::uint64_t> fields[] = {
+      {"frames", c.frames},
+      {"dropped", c.dropped},
+      {"sequence_errors", c.sequence_errors},
+      {"non_monotonic", c.non_monotonic},
+      {"corrupt", c.corrupt},
+      {"pool_exhausted", c.pool_exhausted},
+      {"eagain", c.eagain},
+      {"eintr", c.eintr},
+      {"io_errors", c.io_errors},
+      {"timeouts", c.timeouts},
+      {"stream_restarts", c.stream_restarts},
+      {"disconnects", c.disconnects},
+      {"reopens", c.reopens},
+      {"reopen_failures", c.reopen_failures},
+      {"usb_resets", c.usb_resets},
+      {"timestamp_fallbacks", c.timestamp_fallbacks}};
+  std::string out;
+  for (const auto& [name, value] : fields)
+    out += (out.empty() ? "" : " ") + std::string(name) + "=" + std::to_string(value);
+  return out;
 }
 
 // ---------------------------------------------------------------------------------------------

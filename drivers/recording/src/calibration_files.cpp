@@ -8,6 +8,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "camera_yaml.hpp"
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/config/yaml.hpp"
 #include "wallar/drivers/recording/euroc.hpp"
@@ -48,18 +49,6 @@ void kalibr_T(std::ostringstream& s, const char* name, const SE3d& T) {
   for (int r = 0; r < 4; ++r) s << "  - " << list({m(r, 0), m(r, 1), m(r, 2), m(r, 3)}) << "\n";
 }
 
-SE3d rigid(const config::YamlNode& node) {
-  const Eigen::Matrix4d m = node.as_matrix(4, 4);
-  const Eigen::Matrix3d R = m.topLeftCorner<3, 3>();
-  const double err = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
-  if (!m.allFinite() || !(err <= 1e-3) || !(R.determinant() > 0.0))
-    node.fail("is not a rigid transform (rotation part not orthonormal)");
-  SE3d T = SE3d::Identity();
-  T.linear() = R;
-  T.translation() = m.topRightCorner<3, 1>();
-  return T;
-}
-
 void check_camera(const config::YamlNode& node, const CameraCalibration& c) {
   if (!(c.fx > 0.0 && c.fy > 0.0 && std::isfinite(c.fx) && std::isfinite(c.fy)))
     node.fail("focal lengths must be positive");
@@ -68,7 +57,7 @@ void check_camera(const config::YamlNode& node, const CameraCalibration& c) {
     if (!std::isfinite(d)) node.fail("distortion coefficients must be finite");
 }
 
-// Checked before converting: a double or int64 outside int's range makes the cast undefined.
+// Checked before converting: a double outside int's range makes the cast undefined.
 int pixels(const config::YamlNode& node, double v) {
   if (!(v >= 1.0 && v <= 16384.0) || v != std::floor(v))
     node.fail("must be a pixel count in 1..16384");
@@ -76,28 +65,8 @@ int pixels(const config::YamlNode& node, double v) {
 }
 
 CameraCalibration kalibr_camera(const config::YamlNode& cam, int index) {
-  CameraCalibration c;
+  CameraCalibration c = detail::read_pinhole_camera(cam, "distortion_coeffs");
   c.name = "cam" + std::to_string(index);
-  const std::string model = cam.get_string("camera_model", "pinhole");
-  if (model != "pinhole") cam.at("camera_model").fail("must be 'pinhole', got '" + model + "'");
-  const std::vector<double> k = cam.at("intrinsics").as_doubles(4);
-  c.fx = k[0];
-  c.fy = k[1];
-  c.cx = k[2];
-  c.cy = k[3];
-  const std::vector<double> res = cam.at("resolution").as_doubles(2);
-  c.width_px = pixels(cam.at("resolution"), res[0]);
-  c.height_px = pixels(cam.at("resolution"), res[1]);
-  const std::string dm = cam.get_string("distortion_model", "radtan");
-  if (dm == "radtan") {
-    c.distortion_model = "radial-tangential";
-  } else if (dm == "equidistant") {
-    c.distortion_model = "equidistant";
-  } else {
-    cam.at("distortion_model").fail("must be radtan or equidistant, got '" + dm + "'");
-  }
-  c.distortion = cam.at("distortion_coeffs").as_doubles(4);
-  check_camera(cam.at("intrinsics"), c);
   return c;
 }
 
@@ -109,13 +78,14 @@ RigCalibration parse_kalibr(const config::YamlNode& root) {
   rig.cams[1] = kalibr_camera(c1, 1);
   // Body: the IMU when cam0 is calibrated against it, else cam0.
   SE3d T_body_cam0 = SE3d::Identity();
-  if (const config::YamlNode* t = c0.find("T_cam_imu")) T_body_cam0 = rigid(*t).inverse();
+  if (const config::YamlNode* t = c0.find("T_cam_imu"))
+    T_body_cam0 = detail::read_rigid(*t).inverse();
   rig.cams[0].T_body_cam = T_body_cam0;
   if (const config::YamlNode* t = c1.find("T_cn_cnm1")) {
-    rig.cams[1].T_body_cam = T_body_cam0 * rigid(*t).inverse();
+    rig.cams[1].T_body_cam = T_body_cam0 * detail::read_rigid(*t).inverse();
   } else if (const config::YamlNode* ti = c1.find("T_cam_imu")) {
     if (!c0.has("T_cam_imu")) ti->fail("needs cam0.T_cam_imu too (or give cam1.T_cn_cnm1)");
-    rig.cams[1].T_body_cam = rigid(*ti).inverse();
+    rig.cams[1].T_body_cam = detail::read_rigid(*ti).inverse();
   } else {
     c1.fail("has neither T_cn_cnm1 nor T_cam_imu: the stereo extrinsics are missing");
   }

@@ -14,6 +14,7 @@
 #include <cstring>
 #include <sstream>
 
+#include "camera_yaml.hpp"
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/config/yaml.hpp"
 #include "wallar/drivers/recording/csv.hpp"
@@ -35,22 +36,6 @@ void check_monotonic(const CsvRow& row, TimeNs previous_ns, TimeNs t_ns, bool fi
     row.fail("timestamp " + std::to_string(t_ns) + " goes back from " +
              std::to_string(previous_ns) + " (non-monotonic)");
   }
-}
-
-SE3d read_T(const config::YamlNode& node) {
-  const Eigen::Matrix4d m = node.as_matrix(4, 4);
-  const Eigen::Matrix3d R = m.topLeftCorner<3, 3>();
-  // A rotation must be orthonormal with det +1; a typo in a calibration file is caught here.
-  // Written so that NaN fails too: huge finite entries (1e200) overflow R^T R to inf - inf.
-  const double orthonormality_error =
-      (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
-  if (!m.allFinite() || !(orthonormality_error <= 1e-3) || !(R.determinant() > 0.0)) {
-    node.fail("is not a rigid transform (rotation part not orthonormal)");
-  }
-  SE3d T = SE3d::Identity();
-  T.linear() = R;
-  T.translation() = m.topRightCorner<3, 1>();
-  return T;
 }
 
 void write_all(int fd, const std::string& text, const fs::path& path) {
@@ -149,39 +134,71 @@ std::vector<GroundTruthState> parse_ground_truth_csv(std::string_view text,
   return states;
 }
 
-CameraCalibration parse_camera_sensor_yaml(std::string_view text, const std::string& name) {
-  const config::YamlDocument doc = config::YamlDocument::parse(text, name);
-  const config::YamlNode& root = doc.root();
-  if (!root.is_map()) root.fail("must be a map of sensor settings");
+namespace detail {
+
+SE3d read_rigid(const config::YamlNode& node) {
+  const Eigen::Matrix4d m = node.as_matrix(4, 4);
+  const Eigen::Matrix3d R = m.topLeftCorner<3, 3>();
+  // A rotation must be orthonormal with det +1; a typo in a calibration file is caught here.
+  // Written so that NaN fails too: huge finite entries (1e200) overflow R^T R to inf - inf.
+  const double orthonormality_error =
+      (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (!m.allFinite() || !(orthonormality_error <= 1e-3) || !(R.determinant() > 0.0)) {
+    node.fail("is not a rigid transform (rotation part not orthonormal)");
+  }
+  SE3d T = SE3d::Identity();
+  T.linear() = R;
+  T.translation() = m.topRightCorner<3, 1>();
+  return T;
+}
+
+CameraCalibration read_pinhole_camera(const config::YamlNode& node,
+                                      std::string_view distortion_key) {
   CameraCalibration c;
-  c.T_body_cam = read_T(root.at("T_BS"));
-  c.rate_hz = root.at("rate_hz").as_double();
-  const std::vector<double> res = root.at("resolution").as_doubles(2);
+  const config::YamlNode& res_node = node.at("resolution");
+  const std::vector<double> res = res_node.as_doubles(2);
   // Check before converting: a double outside int's range (1e10) makes the cast undefined.
   for (const double px : res) {
     if (!(px >= 1.0 && px <= 16384.0) || px != std::floor(px)) {
-      root.at("resolution").fail("must be two positive pixel counts");
+      res_node.fail("must be two positive pixel counts");
     }
   }
   c.width_px = static_cast<int>(res[0]);
   c.height_px = static_cast<int>(res[1]);
-  const std::string model = root.get_string("camera_model", "pinhole");
-  if (model != "pinhole") root.at("camera_model").fail("must be 'pinhole', got '" + model + "'");
-  const std::vector<double> k = root.at("intrinsics").as_doubles(4);
+  const std::string model = node.get_string("camera_model", "pinhole");
+  if (model != "pinhole") node.at("camera_model").fail("must be 'pinhole', got '" + model + "'");
+  const config::YamlNode& k_node = node.at("intrinsics");
+  const std::vector<double> k = k_node.as_doubles(4);
   c.fx = k[0];
   c.fy = k[1];
   c.cx = k[2];
   c.cy = k[3];
-  if (!(c.fx > 0.0 && c.fy > 0.0)) root.at("intrinsics").fail("focal lengths must be positive");
-  c.distortion_model = root.get_string("distortion_model", "radial-tangential");
+  if (!(c.fx > 0.0 && c.fy > 0.0 && std::isfinite(c.fx) && std::isfinite(c.fy)))
+    k_node.fail("focal lengths must be positive");
+  if (!std::isfinite(c.cx) || !std::isfinite(c.cy)) k_node.fail("principal point must be finite");
+  c.distortion_model = node.get_string("distortion_model", "radial-tangential");
   if (c.distortion_model == "radial-tangential" || c.distortion_model == "radtan") {
     c.distortion_model = "radial-tangential";
-    c.distortion = root.at("distortion_coefficients").as_doubles(4);
-  } else if (c.distortion_model == "equidistant") {
-    c.distortion = root.at("distortion_coefficients").as_doubles(4);
-  } else {
-    root.at("distortion_model").fail("must be radial-tangential or equidistant");
+  } else if (c.distortion_model != "equidistant") {
+    node.at("distortion_model").fail("must be radial-tangential (radtan) or equidistant");
   }
+  const config::YamlNode& d_node = node.at(distortion_key);
+  c.distortion = d_node.as_doubles(4);
+  for (const double d : c.distortion)
+    if (!std::isfinite(d)) d_node.fail("distortion coefficients must be finite");
+  return c;
+}
+
+}  // namespace detail
+
+CameraCalibration parse_camera_sensor_yaml(std::string_view text, const std::string& name) {
+  const config::YamlDocument doc = config::YamlDocument::parse(text, name);
+  const config::YamlNode& root = doc.root();
+  if (!root.is_map()) root.fail("must be a map of sensor settings");
+  const SE3d T_body_cam = detail::read_rigid(root.at("T_BS"));
+  CameraCalibration c = detail::read_pinhole_camera(root, "distortion_coefficients");
+  c.T_body_cam = T_body_cam;
+  c.rate_hz = root.at("rate_hz").as_double();
   if (c.rate_hz <= 0.0) root.at("rate_hz").fail("must be positive");
   return c;
 }
@@ -195,7 +212,7 @@ ImuCalibration read_imu_sensor_yaml(const fs::path& path) {
   const config::YamlNode& root = doc.root();
   if (!root.is_map()) root.fail("must be a map of sensor settings");
   ImuCalibration c;
-  c.T_body_imu = read_T(root.at("T_BS"));
+  c.T_body_imu = detail::read_rigid(root.at("T_BS"));
   c.rate_hz = root.at("rate_hz").as_double();
   if (c.rate_hz <= 0.0) root.at("rate_hz").fail("must be positive");
   c.gyro_noise_density = root.at("gyroscope_noise_density").as_double();
