@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file cmd_record.cpp
 /// @brief `wallar record`: write the board's sensor streams as an EuRoC recording.
+#include <atomic>
+#include <chrono>
 #include <cstdio>
 #include <iostream>
 #include <limits>
@@ -110,25 +112,35 @@ int run_live_record(const RecordArgs& args, const firmware::BoardConfig& board) 
                                                 : std::numeric_limits<TimeNs>::max();
   std::atomic<bool> stop{false};
   std::thread imu_thread;
-  if (imu) imu_thread = std::thread([&] { imu->run(until_ns, stop); });
+  std::exception_ptr imu_error;
+  if (imu) {
+    imu_thread = std::thread([&] {
+      try {
+        imu->run(until_ns, stop);
+      } catch (...) {
+        imu_error = std::current_exception();
+        stop.store(true);
+      }
+    });
+  }
+  // Stops on SIGINT/SIGTERM (stop_requested), the time limit, or a failure of either thread.
+  std::thread watch([&] {
+    while (!stop.load() && !stop_requested().load() && monotonic_now_ns() < until_ns)
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    stop.store(true);
+  });
   std::exception_ptr capture_error;
   try {
-    // Stops on SIGINT/SIGTERM (stop_requested), the time limit, or a write error.
-    std::thread watch([&] {
-      while (!stop.load() && !stop_requested().load() && monotonic_now_ns() < until_ns)
-        std::this_thread::sleep_for(std::chrono::milliseconds(20));
-      stop.store(true);
-    });
     cameras.run(until_ns, stop);
-    stop.store(true);
-    watch.join();
   } catch (...) {
     capture_error = std::current_exception();
-    stop.store(true);
   }
+  stop.store(true);
+  watch.join();
   if (imu_thread.joinable()) imu_thread.join();
   writer.close();
   if (capture_error) std::rethrow_exception(capture_error);
+  if (imu_error) std::rethrow_exception(imu_error);
   if (const std::string e = serial.error(); !e.empty()) throw InputError(e);
 
   const drivers::StereoCapture& cap = cameras.capture();
