@@ -428,9 +428,10 @@ calibrate_stereo_bad_input)
   one_err_line; expect_err "--left matches 13 files but --right 9"
   run calibrate stereo --left "$cal/left*.jpg" --right "$cal/right*.jpg" --board-size 9by6
   expect_rc 2; one_err_line; expect_err "--board-size '9by6': want the inner corners"
-  run calibrate stereo --left "$cal/left*.jpg" --right "$cal/right*.jpg" --board-size 12x12 \
-    --out "$tmp/c.yaml" --json "$tmp/c.json"
-  expect_rc 2; one_err_line; expect_err "was found in both images of only 0 of 13 pairs"
+  # (two pairs: a failed chessboard search is the slow case, and this runs under qemu too)
+  run calibrate stereo --left "$cal/left0[12].jpg" --right "$cal/right0[12].jpg" \
+    --board-size 12x12 --out "$tmp/c.yaml" --json "$tmp/c.json"
+  expect_rc 2; one_err_line; expect_err "was found in both images of only 0 of 2 pairs"
   [ -e "$tmp/c.yaml" ] || [ -e "$tmp/c.json" ] && fail "a failed calibration left a file"
   printf 'left01.jpg\n' > "$tmp/list.txt"
   run calibrate stereo --list "$tmp/list.txt"; expect_rc 2; one_err_line
@@ -446,10 +447,11 @@ calibrate_stereo_bad_input)
 rectify_check)
   # EuRoC's own calibration rectifies its pairs to well under half a pixel; a threshold turns
   # the check into a pass/fail for hardware-in-the-loop runs.
-  run calibrate rectify-check --recording "$rec" --json; expect_rc 0
-  [ "$(json "d['matches'] > 1000 and d['mean_px'] < 0.5")" = True ] || fail "$(cat "$tmp/out")"
-  run calibrate rectify-check --recording "$rec" --max-mean-px 0.5; expect_rc 0
-  run calibrate rectify-check --recording "$rec" --max-mean-px 0.01; expect_rc 1; one_err_line
+  run calibrate rectify-check --recording "$rec" --every 20 --max-mean-px 0.5 --json; expect_rc 0
+  [ "$(json "d['pairs'] == 2 and d['matches'] > 500 and d['mean_px'] < 0.5 and d['pass']")" \
+    = True ] || fail "$(cat "$tmp/out")"
+  run calibrate rectify-check --recording "$rec" --every 40 --max-mean-px 0.01; expect_rc 1
+  one_err_line
   expect_err "exceeds --max-mean-px 0.010"
   ;;
 calibrate_imu_cam)
