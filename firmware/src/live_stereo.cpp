@@ -103,10 +103,7 @@ std::string LiveStereo::description() const {
 }
 
 void LiveStereo::run(TimeNs until_ns, const std::atomic<bool>& stop) {
-  drivers::StereoCapture& capture = *parts_->capture;
-  while (!stop.load(std::memory_order_relaxed) && parts_->sys.now_ns() < until_ns)
-    capture.run_once(50 * kNsPerMs);  // a stop request is seen within 50 ms
-  capture.stop();
+  parts_->capture->run(until_ns, stop);
 }
 
 }  // namespace wallar::firmware

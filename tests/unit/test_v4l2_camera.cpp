@@ -5,6 +5,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <vector>
 
 #include "fake_v4l2.hpp"
@@ -126,6 +127,27 @@ TEST_F(V4l2Test, NegotiatesStreamsAndPairsGreyFramesWithoutCopies) {
   cap->stop();
   EXPECT_EQ(sys.open_fds(), 0);
   EXPECT_EQ(sys.mappings(), 0);
+}
+
+TEST_F(V4l2Test, RunCapturesUntilItsDeadlineOrTheStopFlagThenStops) {
+  auto cap = make();
+  cap->start();
+  std::atomic<bool> stop{false};
+  // One second of the fake's time is 30 frame periods; the last iteration may wait up to its
+  // 50 ms bound past the deadline, so one more frame can come in.
+  cap->run(sys.now_ns() + kNsPerS, stop);
+  EXPECT_GE(sink.pair_count, 29);
+  EXPECT_LE(sink.pair_count, 31);
+  EXPECT_EQ(cap->camera(0).state(), CameraState::kStopped);
+  EXPECT_EQ(sys.open_fds(), 0);
+  // A stop flag already set: no iteration runs, the cameras stop at once.
+  auto again = make();
+  again->start();
+  const int pairs = sink.pair_count;
+  stop.store(true);
+  again->run(sys.now_ns() + 10 * kNsPerS, stop);
+  EXPECT_EQ(sink.pair_count, pairs);
+  EXPECT_EQ(again->camera(1).state(), CameraState::kStopped);
 }
 
 TEST_F(V4l2Test, RefusedFormatsAndMissingDevicesAreOneLineDeviceErrors) {

@@ -119,11 +119,9 @@ void StereoCapture::run_once(DurationNs max_wait_ns) {
   }
 }
 
-void StereoCapture::run(const std::atomic<bool>* stop_flag) {
-  while (!stop_.load(std::memory_order_acquire) &&
-         (stop_flag == nullptr || !stop_flag->load(std::memory_order_acquire))) {
+void StereoCapture::run(TimeNs until_ns, const std::atomic<bool>& stop_flag) {
+  while (!stop_flag.load(std::memory_order_acquire) && sys_.now_ns() < until_ns)
     run_once(50 * kNsPerMs);  // bounded so a stop request is seen within 50 ms
-  }
   stop();
 }
 

@@ -15,7 +15,8 @@
 /// timeout ends at the edge) for `trigger_pulse_ns`. Missed edges (the thread was late by a
 /// whole period) are counted, not made up.
 ///
-/// Threading: start/run_once/run/stop on the capture thread; request_stop() from any thread.
+/// Threading: start/run_once/run/stop on the capture thread; run()'s stop flag may be set from
+/// any thread.
 /// The sink is called on the capture thread. Nothing allocates after start() (GREY/YUYV).
 #pragma once
 
@@ -67,9 +68,8 @@ class StereoCapture final : private CameraListener {
   /// One iteration: wait (at most max_wait_ns) for a frame or a deadline, step both cameras,
   /// pair, deliver.
   void run_once(DurationNs max_wait_ns);
-  /// Runs iterations until request_stop() (or `stop_flag`) is set, then stop().
-  void run(const std::atomic<bool>* stop_flag = nullptr);
-  void request_stop() { stop_.store(true, std::memory_order_release); }
+  /// Runs iterations until `stop_flag` is set or until_ns (CLOCK_MONOTONIC) passes, then stop().
+  void run(TimeNs until_ns, const std::atomic<bool>& stop_flag);
 
   [[nodiscard]] const V4l2Camera& camera(int i) const {
     return *cams_[static_cast<std::size_t>(i)];
@@ -93,7 +93,6 @@ class StereoCapture final : private CameraListener {
   std::optional<sync::StereoPairer> pairer_;
   sync::PairingStats empty_stats_;
   StereoCaptureCounters counters_;
-  std::atomic<bool> stop_{false};
   TimeNs next_rise_ns_ = 0;
   TimeNs fall_ns_ = 0;  //!< 0 = line not asserted
   bool started_ = false;
