@@ -181,6 +181,7 @@ TEST(Gpio, OpenFailureNamesChipAndLine) {
     EXPECT_EQ(msg.find('\n'), std::string::npos);
   }
   EXPECT_THROW(drivers::GpioButton(spec, "wallar-test", 20 * kNsPerMs), DeviceError);
+  EXPECT_THROW(drivers::GpioOutput(spec, "wallar-test"), DeviceError);
 }
 
 TEST(Gpio, KernelTimestampToNanoseconds) {

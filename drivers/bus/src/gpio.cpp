@@ -19,30 +19,6 @@ namespace {
                     std::strerror(err));
 }
 
-// Opens the chip and requests the line for the given edge events; on error releases what it
-// got and throws.
-void open_line(const GpioLineSpec& spec, const char* consumer, int request_type, int flags,
-               gpiod_chip*& chip, gpiod_line*& line, int initial_value = 0) {
-  errno = 0;
-  chip = gpiod_chip_open_lookup(spec.chip.c_str());
-  if (chip == nullptr) fail(spec, "cannot open GPIO chip", errno != 0 ? errno : ENODEV);
-  line = gpiod_chip_get_line(chip, spec.line);
-  if (line == nullptr) {
-    const int err = errno != 0 ? errno : EINVAL;
-    gpiod_chip_close(chip);
-    chip = nullptr;
-    fail(spec, "no such line", err);
-  }
-  gpiod_line_request_config config{consumer, request_type, flags};
-  if (gpiod_line_request(line, &config, initial_value) < 0) {
-    const int err = errno;
-    gpiod_chip_close(chip);
-    chip = nullptr;
-    line = nullptr;
-    fail(spec, "cannot request line", err);
-  }
-}
-
 timespec to_timespec(DurationNs ns) {
   if (ns < 0) ns = 0;
   return ns_to_timespec(ns);
@@ -50,50 +26,61 @@ timespec to_timespec(DurationNs ns) {
 
 }  // namespace
 
-GpioEdgeInput::GpioEdgeInput(const GpioLineSpec& spec, const char* consumer) {
-  // Ask for the physical asserting edge and do not invert: the event type then needs no
-  // interpretation, whatever the kernel's v1 active-low semantics.
-  open_line(spec, consumer,
-            spec.active_low ? GPIOD_LINE_REQUEST_EVENT_FALLING_EDGE
-                            : GPIOD_LINE_REQUEST_EVENT_RISING_EDGE,
-            0, chip_, line_);
+GpioLineRequest::GpioLineRequest(const GpioLineSpec& spec, const char* consumer, int request_type,
+                                 int flags, int initial_value) {
+  errno = 0;
+  chip_ = gpiod_chip_open_lookup(spec.chip.c_str());
+  if (chip_ == nullptr) fail(spec, "cannot open GPIO chip", errno != 0 ? errno : ENODEV);
+  line_ = gpiod_chip_get_line(chip_, spec.line);
+  if (line_ == nullptr) {
+    const int err = errno != 0 ? errno : EINVAL;
+    gpiod_chip_close(chip_);
+    fail(spec, "no such line", err);
+  }
+  gpiod_line_request_config config{consumer, request_type, flags};
+  if (gpiod_line_request(line_, &config, initial_value) < 0) {
+    const int err = errno;
+    gpiod_chip_close(chip_);
+    fail(spec, "cannot request line", err);
+  }
 }
 
-GpioEdgeInput::~GpioEdgeInput() {
-  if (line_ != nullptr) gpiod_line_release(line_);
-  if (chip_ != nullptr) gpiod_chip_close(chip_);
+GpioLineRequest::~GpioLineRequest() {
+  gpiod_line_release(line_);
+  gpiod_chip_close(chip_);
 }
 
-int GpioEdgeInput::fd() const { return gpiod_line_event_get_fd(line_); }
+// Ask for the physical asserting edge and do not invert: the event type then needs no
+// interpretation, whatever the kernel's v1 active-low semantics.
+GpioEdgeInput::GpioEdgeInput(const GpioLineSpec& spec, const char* consumer)
+    : request_(spec, consumer,
+               spec.active_low ? GPIOD_LINE_REQUEST_EVENT_FALLING_EDGE
+                               : GPIOD_LINE_REQUEST_EVENT_RISING_EDGE,
+               0) {}
 
+int GpioEdgeInput::fd() const { return gpiod_line_event_get_fd(request_.line()); }
+
+// Physical levels, no ACTIVE_LOW flag: the start value is then unambiguous (de-asserted).
 GpioOutput::GpioOutput(const GpioLineSpec& spec, const char* consumer)
-    : active_low_(spec.active_low) {
-  // Physical levels, no ACTIVE_LOW flag: the start value is then unambiguous (de-asserted).
-  open_line(spec, consumer, GPIOD_LINE_REQUEST_DIRECTION_OUTPUT, 0, chip_, line_,
-            spec.active_low ? 1 : 0);
-}
-
-GpioOutput::~GpioOutput() {
-  if (line_ != nullptr) gpiod_line_release(line_);
-  if (chip_ != nullptr) gpiod_chip_close(chip_);
-}
+    : request_(spec, consumer, GPIOD_LINE_REQUEST_DIRECTION_OUTPUT, 0, spec.active_low ? 1 : 0),
+      active_low_(spec.active_low) {}
 
 void GpioOutput::set(bool asserted) {
-  if (gpiod_line_set_value(line_, asserted != active_low_ ? 1 : 0) < 0) ++errors_;
+  if (gpiod_line_set_value(request_.line(), asserted != active_low_ ? 1 : 0) < 0) ++errors_;
 }
 
 std::optional<TimeNs> GpioEdgeInput::wait_edge(DurationNs timeout_ns) {
   const timespec ts = to_timespec(timeout_ns);
   int r = 0;
   do {
-    r = gpiod_line_event_wait(line_, &ts);
+    r = gpiod_line_event_wait(request_.line(), &ts);
   } while (r < 0 && errno == EINTR);
   if (r <= 0) {
     if (r < 0) ++errors_;
     return std::nullopt;
   }
   gpiod_line_event event{};
-  if (gpiod_line_event_read(line_, &event) < 0) {
+  if (gpiod_line_event_read(request_.line(), &event) < 0) {
     ++errors_;
     return std::nullopt;
   }
@@ -127,29 +114,22 @@ std::optional<TimeNs> Debouncer::settle_deadline() const {
 }
 
 GpioButton::GpioButton(const GpioLineSpec& spec, const char* consumer, DurationNs debounce_ns)
-    : debouncer_(debounce_ns, false) {
-  open_line(spec, consumer, GPIOD_LINE_REQUEST_EVENT_BOTH_EDGES,
-            spec.active_low ? GPIOD_LINE_REQUEST_FLAG_ACTIVE_LOW : 0, chip_, line_);
-  const int v = gpiod_line_get_value(line_);  // logical level (active_low applied)
-  debouncer_ = Debouncer(debounce_ns, v > 0);
-}
+    : request_(spec, consumer, GPIOD_LINE_REQUEST_EVENT_BOTH_EDGES,
+               spec.active_low ? GPIOD_LINE_REQUEST_FLAG_ACTIVE_LOW : 0),
+      // The logical level (active_low applied) at start.
+      debouncer_(debounce_ns, gpiod_line_get_value(request_.line()) > 0) {}
 
-GpioButton::~GpioButton() {
-  if (line_ != nullptr) gpiod_line_release(line_);
-  if (chip_ != nullptr) gpiod_chip_close(chip_);
-}
-
-int GpioButton::fd() const { return gpiod_line_event_get_fd(line_); }
+int GpioButton::fd() const { return gpiod_line_event_get_fd(request_.line()); }
 
 std::optional<bool> GpioButton::service(DurationNs timeout_ns, TimeNs now_ns) {
   std::optional<bool> changed;
   timespec ts = to_timespec(timeout_ns);
   for (;;) {
-    const int r = gpiod_line_event_wait(line_, &ts);
+    const int r = gpiod_line_event_wait(request_.line(), &ts);
     if (r < 0 && errno == EINTR) continue;
     if (r <= 0) break;
     gpiod_line_event event{};
-    if (gpiod_line_event_read(line_, &event) < 0) break;
+    if (gpiod_line_event_read(request_.line(), &event) < 0) break;
     // With ACTIVE_LOW requested, v1 reports logical edges: RISING means "became asserted".
     const bool level = event.event_type == GPIOD_LINE_EVENT_RISING_EDGE;
     if (auto c = debouncer_.on_edge(level, timespec_to_ns(event.ts))) changed = c;

@@ -38,6 +38,24 @@ struct GpioLineSpec {
   bool active_low = false;  //!< the signal is asserted at the low level
 };
 
+/// One requested line and the chip it belongs to (RAII): the handle every GPIO class below
+/// holds. Released (line, then chip) on destruction.
+class GpioLineRequest {
+ public:
+  /// Opens the chip and requests the line (libgpiod request type and flags, the initial value
+  /// for outputs). Throws wallar::DeviceError "CHIP line N: cannot ...: STRERROR".
+  GpioLineRequest(const GpioLineSpec& spec, const char* consumer, int request_type, int flags,
+                  int initial_value = 0);
+  ~GpioLineRequest();
+  GpioLineRequest(const GpioLineRequest&) = delete;
+  GpioLineRequest& operator=(const GpioLineRequest&) = delete;
+  [[nodiscard]] gpiod_line* line() const { return line_; }
+
+ private:
+  gpiod_chip* chip_ = nullptr;
+  gpiod_line* line_ = nullptr;
+};
+
 /// A data-ready (interrupt) input: requests the asserting edge only (rising, or falling when
 /// active_low) and hands out each event's kernel timestamp.
 class GpioEdgeInput {
@@ -45,7 +63,6 @@ class GpioEdgeInput {
   /// Throws wallar::DeviceError "CHIP line N: cannot ...: STRERROR" when the chip cannot be
   /// opened or the line cannot be requested (busy, out of range).
   GpioEdgeInput(const GpioLineSpec& spec, const char* consumer);
-  ~GpioEdgeInput();
   GpioEdgeInput(const GpioEdgeInput&) = delete;
   GpioEdgeInput& operator=(const GpioEdgeInput&) = delete;
 
@@ -57,8 +74,7 @@ class GpioEdgeInput {
   [[nodiscard]] std::uint64_t errors() const { return errors_; }
 
  private:
-  gpiod_chip* chip_ = nullptr;
-  gpiod_line* line_ = nullptr;
+  GpioLineRequest request_;
   std::uint64_t errors_ = 0;
 };
 
@@ -68,7 +84,6 @@ class GpioOutput {
  public:
   /// Throws wallar::DeviceError "CHIP line N: cannot ...: STRERROR" as GpioEdgeInput does.
   GpioOutput(const GpioLineSpec& spec, const char* consumer);
-  ~GpioOutput();
   GpioOutput(const GpioOutput&) = delete;
   GpioOutput& operator=(const GpioOutput&) = delete;
   /// Drives the line; a failure is counted in errors(), never thrown (fixed-rate callers).
@@ -76,8 +91,7 @@ class GpioOutput {
   [[nodiscard]] std::uint64_t errors() const { return errors_; }
 
  private:
-  gpiod_chip* chip_ = nullptr;
-  gpiod_line* line_ = nullptr;
+  GpioLineRequest request_;
   bool active_low_ = false;
   std::uint64_t errors_ = 0;
 };
@@ -117,7 +131,6 @@ class GpioButton {
  public:
   /// Throws wallar::DeviceError naming chip and line when it cannot be opened or requested.
   GpioButton(const GpioLineSpec& spec, const char* consumer, DurationNs debounce_ns);
-  ~GpioButton();
   GpioButton(const GpioButton&) = delete;
   GpioButton& operator=(const GpioButton&) = delete;
 
@@ -128,8 +141,7 @@ class GpioButton {
   [[nodiscard]] bool pressed() const { return debouncer_.level(); }
 
  private:
-  gpiod_chip* chip_ = nullptr;
-  gpiod_line* line_ = nullptr;
+  GpioLineRequest request_;  // before debouncer_: its initial level is read from the line
   Debouncer debouncer_;
 };
 
