@@ -1,0 +1,92 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file synthetic_room.hpp
+/// @brief A textured box room rendered to rectified stereo images along a known trajectory:
+/// ground truth for the stereo tracker (ATE against the trajectory, map points against walls).
+///
+/// The room is an axis-aligned box in world coordinates (z up, floor at z = 0). Each of its six
+/// surfaces carries a different procedural texture, a function of (texture_seed, surface, the
+/// 2-D surface coordinates in metres) only: random rectangles and discs of random gray levels in
+/// three cell sizes (0.45, 0.22, 0.11 m) painted large to small over low-contrast value noise.
+/// Nothing repeats, so stereo matching is unambiguous, and the shapes' corners give a FAST
+/// detector plenty of well-spread corners at 1-6 m. Images are supersampled (samples_per_axis^2
+/// rays per pixel on a rotated grid), so edges and corners sit at sub-pixel-accurate positions.
+///
+/// Threading: pure functions and value types; render_room may run concurrently on different
+/// output buffers.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "wallar/core/pose.hpp"
+#include "wallar/core/time.hpp"
+
+namespace wallar::dsp {
+
+/// An axis-aligned box room in world coordinates, z up, floor at z = 0.
+struct SyntheticRoom {
+  double x_min_m = -3, x_max_m = 3, y_min_m = -4, y_max_m = 4, z_max_m = 3;
+  std::uint64_t texture_seed = 1;
+
+  /// The 6 surfaces as planes n.p - d = 0 with n pointing INTO the room (toward the viewer),
+  /// in the order of RoomSurface: x_min, x_max, y_min, y_max, floor, ceiling.
+  [[nodiscard]] std::array<Eigen::Vector4d, 6> planes() const;  // (nx, ny, nz, d)
+  /// Distance from p_world to the nearest of the six (infinite) surface planes [m]; for a point
+  /// inside the room this is its clearance.
+  [[nodiscard]] double distance_to_nearest_surface(const Eigen::Vector3d& p_world) const;
+};
+
+/// Index of a surface in SyntheticRoom::planes().
+enum class RoomSurface : int { kXMin = 0, kXMax, kYMin, kYMax, kFloor, kCeiling };
+
+/// A rectified pinhole stereo pair without distortion; the right camera sits at +baseline_m
+/// along the left camera's x axis with the same orientation.
+struct SyntheticCamera {
+  int width_px = 752, height_px = 480;
+  double f_px = 450, cx_px = 375.5, cy_px = 239.5, baseline_m = 0.11;
+  /// Supersampling: samples_per_axis^2 rays per pixel on a rotated grid (samples_per_axis^2
+  /// distinct offsets along each axis; 1 = the pixel centre only).
+  int samples_per_axis = 2;
+};
+
+/// Where a ray from origin_world along direction_world (any length > 0) leaves the room: the
+/// nearest surface hit. nullopt when the origin is not inside the room or the direction is 0.
+struct RoomHit {
+  Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
+  double range = 0;  //!< distance along the ray in units of |direction_world|
+  RoomSurface surface = RoomSurface::kXMin;
+};
+[[nodiscard]] std::optional<RoomHit> ray_hit(const SyntheticRoom& room,
+                                             const Eigen::Vector3d& origin_world,
+                                             const Eigen::Vector3d& direction_world);
+
+/// The texture's gray level (0-255, unrounded) on `surface` at surface coordinates (s_m, t_m):
+/// (y, z) on the x walls, (x, z) on the y walls, (x, y) on the floor and the ceiling. Point
+/// samples, no filtering; render_room averages them.
+[[nodiscard]] double room_texture(const SyntheticRoom& room, RoomSurface surface, double s_m,
+                                  double t_m);
+
+/// Renders the left (cam = 0) or right (cam = 1, shifted +baseline along the camera's x) 8-bit
+/// gray image seen by a camera whose LEFT camera pose is T_world_cam (camera x right, y down,
+/// z forward) into `out` (width*height bytes, row-major, stride = width). Pixel (u, v) has its
+/// centre at u, v (so the ray of pixel centre (u, v) is ((u - cx)/f, (v - cy)/f, 1)). Pixels
+/// whose rays leave no hit (camera outside the room) are 0.
+/// Throws std::invalid_argument for cam not 0/1, a bad camera or an `out` of the wrong size.
+void render_room(const SyntheticRoom& room, const SyntheticCamera& camera, const SE3d& T_world_cam,
+                 int cam, std::span<std::uint8_t> out);
+
+/// A smooth closed trajectory inside the room: n poses at rate_hz from t0_ns, T_world_body of the
+/// LEFT camera (camera frame: x right, y down, z forward). The camera circles an ellipse of about
+/// 0.8 m x 0.5 m semi-axes (smaller in small rooms) around the room centre at 1.5 m height (bobbing
+/// +-0.1 m) once every kSyntheticTrajectoryPeriodS, looking roughly horizontally toward the +y
+/// wall with its heading swinging +-40 deg, pitch +-8 deg and roll +-3 deg. Deterministic and
+/// periodic. Throws std::invalid_argument for n < 0, rate_hz <= 0 or a room under 2 m x 2 m x 1 m.
+inline constexpr double kSyntheticTrajectoryPeriodS = 20.0;
+[[nodiscard]] std::vector<StampedPose> synthetic_trajectory(const SyntheticRoom& room, int n,
+                                                            double rate_hz, TimeNs t0_ns = 0);
+
+}  // namespace wallar::dsp
