@@ -27,12 +27,6 @@ constexpr double kMinDepth_m = 1e-6;
 constexpr double kMinDiagonal = 1e-6;  // damping floor for degenerate diagonal entries
 constexpr double kMaxLambda = 1e16;    // beyond this no step can make progress
 
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d S;
-  S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return S;
-}
-
 // --- Input checks -------------------------------------------------------------------------------
 
 void validate(const StereoIntrinsics& K, const std::vector<BaKeyframe>& keyframes,
@@ -312,7 +306,8 @@ void apply(const Step& step, const Layout& L, std::vector<BaKeyframe>& keyframes
   for (std::size_t k = 0; k < keyframes.size(); ++k) {
     const int c = L.cam_of_keyframe[k];
     if (c < 0) continue;
-    SE3d T = se3_exp(step.d_cam[static_cast<std::size_t>(c)]) * keyframes[k].T_cam_world;
+    SE3d T = orthonormalised(se3_exp(step.d_cam[static_cast<std::size_t>(c)]) *
+                             keyframes[k].T_cam_world);
     T.linear() = Eigen::Quaterniond(T.linear()).normalized().toRotationMatrix();  // no drift
     keyframes[k].T_cam_world = T;
   }
@@ -323,24 +318,6 @@ void apply(const Step& step, const Layout& L, std::vector<BaKeyframe>& keyframes
 
 // --- Building blocks ----------------------------------------------------------------------------
 
-SE3d se3_exp(const Eigen::Matrix<double, 6, 1>& xi) {
-  const Eigen::Vector3d v = xi.head<3>();
-  const Eigen::Vector3d w = xi.tail<3>();
-  const double theta = w.norm();
-  const Eigen::Matrix3d Wx = skew(w);
-  // Left Jacobian of SO(3): V = I + (1 - cos t)/t^2 [w]x + (t - sin t)/t^3 [w]x^2.
-  double a = 0.5, b = 1.0 / 6.0;  // Taylor limits for small angles
-  if (theta > 1e-5) {
-    const double t2 = theta * theta;
-    a = (1.0 - std::cos(theta)) / t2;
-    b = (theta - std::sin(theta)) / (t2 * theta);
-  }
-  SE3d T = SE3d::Identity();
-  T.linear() = theta > 0 ? Eigen::AngleAxisd(theta, w / theta).toRotationMatrix()
-                         : Eigen::Matrix3d::Identity();
-  T.translation() = (Eigen::Matrix3d::Identity() + a * Wx + b * Wx * Wx) * v;
-  return T;
-}
 
 bool linearize_observation(const StereoIntrinsics& K, const SE3d& T_cam_world,
                            const Eigen::Vector3d& p_world, const BaObservation& obs,

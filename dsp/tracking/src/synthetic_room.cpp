@@ -174,20 +174,20 @@ class TextureSampler {
 };
 
 // (s, t) surface coordinates of a point on `surface`.
-void surface_coords(RoomSurface surface, const Eigen::Vector3d& p, double& s, double& t) {
+void surface_coords(RoomFace surface, const Eigen::Vector3d& p, double& s, double& t) {
   switch (surface) {
-    case RoomSurface::kXMin:
-    case RoomSurface::kXMax:
+    case RoomFace::kXMin:
+    case RoomFace::kXMax:
       s = p.y();
       t = p.z();
       return;
-    case RoomSurface::kYMin:
-    case RoomSurface::kYMax:
+    case RoomFace::kYMin:
+    case RoomFace::kYMax:
       s = p.x();
       t = p.z();
       return;
-    case RoomSurface::kFloor:
-    case RoomSurface::kCeiling:
+    case RoomFace::kFloor:
+    case RoomFace::kCeiling:
       s = p.x();
       t = p.y();
       return;
@@ -205,20 +205,20 @@ Box box_of(const SyntheticRoom& room) {
 
 // The exit point of a ray from inside the box: nearest of the three faces it heads toward.
 bool cast(const Box& box, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double& range,
-          RoomSurface& surface) {
+          RoomFace& surface) {
   range = std::numeric_limits<double>::infinity();
   for (int a = 0; a < 3; ++a) {
     if (d[a] > 0.0) {
       const double r = (box.hi[a] - o[a]) / d[a];
       if (r < range) {
         range = r;
-        surface = static_cast<RoomSurface>(a == 2 ? 5 : 2 * a + 1);
+        surface = static_cast<RoomFace>(a == 2 ? 5 : 2 * a + 1);
       }
     } else if (d[a] < 0.0) {
       const double r = (box.lo[a] - o[a]) / d[a];
       if (r < range) {
         range = r;
-        surface = static_cast<RoomSurface>(a == 2 ? 4 : 2 * a);
+        surface = static_cast<RoomFace>(a == 2 ? 4 : 2 * a);
       }
     }
   }
@@ -255,7 +255,7 @@ std::optional<RoomHit> ray_hit(const SyntheticRoom& room, const Eigen::Vector3d&
   return hit;
 }
 
-double room_texture(const SyntheticRoom& room, RoomSurface surface, double s_m, double t_m) {
+double room_texture(const SyntheticRoom& room, RoomFace surface, double s_m, double t_m) {
   TextureSampler sampler(room.texture_seed);
   const int k = static_cast<int>(surface);
   return sampler.shapes(k, s_m, t_m) + sampler.noise(k, s_m, t_m);
@@ -305,7 +305,7 @@ void render_room(const SyntheticRoom& room, const SyntheticCamera& camera, const
     for (std::size_t u = 0; u < w; ++u) {
       const double uc = static_cast<double>(u), vc = static_cast<double>(v);
       double range = 0;
-      RoomSurface surface = RoomSurface::kFloor;
+      RoomFace surface = RoomFace::kFloor;
       double s = 0, t = 0;
       double sum = 0.0;
       for (int a = 0; a < n; ++a) {

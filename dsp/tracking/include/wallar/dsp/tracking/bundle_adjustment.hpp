@@ -18,14 +18,10 @@
 #include <vector>
 
 #include "wallar/core/pose.hpp"
+#include "wallar/dsp/tracking/se3.hpp"
+#include "wallar/dsp/tracking/stereo_camera.hpp"
 
 namespace wallar::dsp {
-
-/// Rectified stereo rig: both cameras share f, cx, cy; right camera is the left one shifted by
-/// +baseline_m along x.
-struct StereoIntrinsics {
-  double f_px = 0, cx_px = 0, cy_px = 0, baseline_m = 0;
-};
 
 /// A keyframe: world -> left rectified camera. Fixed keyframes are not moved (they hold the
 /// gauge: at least one must be fixed).
@@ -77,9 +73,6 @@ BaResult bundle_adjust(const StereoIntrinsics& K, std::vector<BaKeyframe>& keyfr
                        const BaOptions& options = {});
 
 // --- Building blocks, public for tests -----------------------------------------------------------
-
-/// exp of a twist xi = (v, w) (translation part first, then rotation vector) as a rigid transform.
-SE3d se3_exp(const Eigen::Matrix<double, 6, 1>& xi);
 
 /// Residual (predicted - measured) of one observation with its Jacobians with respect to the left
 /// pose perturbation (T_cam_world <- exp(xi) * T_cam_world, xi as in se3_exp) and to p_world.

@@ -33,7 +33,7 @@ struct SyntheticRoom {
   std::uint64_t texture_seed = 1;
 
   /// The 6 surfaces as planes n.p - d = 0 with n pointing INTO the room (toward the viewer),
-  /// in the order of RoomSurface: x_min, x_max, y_min, y_max, floor, ceiling.
+  /// in the order of RoomFace: x_min, x_max, y_min, y_max, floor, ceiling.
   [[nodiscard]] std::array<Eigen::Vector4d, 6> planes() const;  // (nx, ny, nz, d)
   /// Distance from p_world to the nearest of the six (infinite) surface planes [m]; for a point
   /// inside the room this is its clearance.
@@ -41,7 +41,7 @@ struct SyntheticRoom {
 };
 
 /// Index of a surface in SyntheticRoom::planes().
-enum class RoomSurface : int { kXMin = 0, kXMax, kYMin, kYMax, kFloor, kCeiling };
+enum class RoomFace : int { kXMin = 0, kXMax, kYMin, kYMax, kFloor, kCeiling };
 
 /// A rectified pinhole stereo pair without distortion; the right camera sits at +baseline_m
 /// along the left camera's x axis with the same orientation.
@@ -58,7 +58,7 @@ struct SyntheticCamera {
 struct RoomHit {
   Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
   double range = 0;  //!< distance along the ray in units of |direction_world|
-  RoomSurface surface = RoomSurface::kXMin;
+  RoomFace surface = RoomFace::kXMin;
 };
 [[nodiscard]] std::optional<RoomHit> ray_hit(const SyntheticRoom& room,
                                              const Eigen::Vector3d& origin_world,
@@ -67,7 +67,7 @@ struct RoomHit {
 /// The texture's gray level (0-255, unrounded) on `surface` at surface coordinates (s_m, t_m):
 /// (y, z) on the x walls, (x, z) on the y walls, (x, y) on the floor and the ceiling. Point
 /// samples, no filtering; render_room averages them.
-[[nodiscard]] double room_texture(const SyntheticRoom& room, RoomSurface surface, double s_m,
+[[nodiscard]] double room_texture(const SyntheticRoom& room, RoomFace surface, double s_m,
                                   double t_m);
 
 /// Renders the left (cam = 0) or right (cam = 1, shifted +baseline along the camera's x) 8-bit
