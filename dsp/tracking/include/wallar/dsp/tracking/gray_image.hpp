@@ -1,0 +1,96 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file gray_image.hpp
+/// @brief 8-bit gray images for the tracker: owned buffers allocated once, views, pyramids,
+/// bilinear sampling, and a precomputed rectification table applied without allocation.
+///
+/// Threading: none; one owner. Views do not own their pixels.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace wallar::dsp {
+
+/// A non-owning view of 8-bit gray pixels.
+struct GrayView {
+  const std::uint8_t* data = nullptr;
+  int width = 0;
+  int height = 0;
+  int stride = 0;  //!< bytes per row
+
+  [[nodiscard]] const std::uint8_t* row(int y) const { return data + std::ptrdiff_t{y} * stride; }
+  [[nodiscard]] std::uint8_t at(int x, int y) const { return row(y)[x]; }
+  [[nodiscard]] bool empty() const { return data == nullptr; }
+  /// Bilinear sample at (x, y); the caller keeps (x, y) within [0, w-1) x [0, h-1).
+  [[nodiscard]] float sample(float x, float y) const {
+    const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+    const float ax = x - static_cast<float>(x0), ay = y - static_cast<float>(y0);
+    const std::uint8_t* r0 = row(y0) + x0;
+    const std::uint8_t* r1 = r0 + stride;
+    return (1.0f - ay) * ((1.0f - ax) * r0[0] + ax * r0[1]) + ay * ((1.0f - ax) * r1[0] + ax * r1[1]);
+  }
+  [[nodiscard]] bool inside(float x, float y, float border) const {
+    return x >= border && y >= border && x < static_cast<float>(width) - 1.0f - border &&
+           y < static_cast<float>(height) - 1.0f - border;
+  }
+};
+
+/// An owned gray image whose buffer is allocated once (construction or first allocate()).
+class GrayImage {
+ public:
+  GrayImage() = default;
+  GrayImage(int width, int height) { allocate(width, height); }
+  void allocate(int width, int height) {
+    width_ = width;
+    height_ = height;
+    pixels_.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), 0);
+  }
+  [[nodiscard]] GrayView view() const { return {pixels_.data(), width_, height_, width_}; }
+  [[nodiscard]] std::uint8_t* data() { return pixels_.data(); }
+  [[nodiscard]] int width() const { return width_; }
+  [[nodiscard]] int height() const { return height_; }
+
+ private:
+  std::vector<std::uint8_t> pixels_;
+  int width_ = 0, height_ = 0;
+};
+
+/// Levels of halved resolution; level 0 is a copy of the input. Buffers are allocated in the
+/// constructor; build() never allocates.
+class Pyramid {
+ public:
+  Pyramid() = default;
+  Pyramid(int width, int height, int levels);
+  /// Copies `image` (its size must match) into level 0 and halves it down (2x2 mean).
+  void build(const GrayView& image);
+  [[nodiscard]] int levels() const { return static_cast<int>(levels_.size()); }
+  [[nodiscard]] GrayView level(int i) const { return levels_[static_cast<std::size_t>(i)].view(); }
+
+ private:
+  std::vector<GrayImage> levels_;
+};
+
+/// A remap table (bilinear, fixed point) computed once from float maps such as OpenCV's
+/// initUndistortRectifyMap; apply() writes the remapped image with no allocation. Pixels whose
+/// source falls outside the input are black.
+class RemapTable {
+ public:
+  RemapTable() = default;
+  /// map_x/map_y: source coordinates for each destination pixel, row-major width x height.
+  RemapTable(int width, int height, std::span<const float> map_x, std::span<const float> map_y,
+             int source_width, int source_height);
+  void apply(const GrayView& source, std::uint8_t* out) const;
+  [[nodiscard]] int width() const { return width_; }
+  [[nodiscard]] int height() const { return height_; }
+
+ private:
+  struct Tap {
+    std::int16_t x = -1, y = 0;   //!< the top-left source tap; x = -1: outside the source
+    std::uint8_t wx = 0, wy = 0;  //!< weights of the right / lower taps, in 1/128
+  };
+  std::vector<Tap> taps_;
+  int width_ = 0, height_ = 0, source_width_ = 0, source_height_ = 0;
+};
+
+}  // namespace wallar::dsp

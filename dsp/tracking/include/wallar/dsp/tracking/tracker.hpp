@@ -1,0 +1,198 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file tracker.hpp
+/// @brief The stereo PTAM-style tracker (thesis §2.1): the fixed-rate half of tracking and
+/// mapping. Each stereo frame is rectified, then tracked in two stages:
+///   1. the map points tracked in the last frame are projected with the predicted pose (gyro
+///      rotation when given, else constant velocity), followed by pyramidal Lucas-Kanade, matched
+///      along the rectified row in the right image, and the pose is found by RANSAC over
+///      three-point stereo alignments and a Huber Gauss-Newton; reprojection outliers are dropped;
+///   2. when too few points are tracked, map points in view that were not tracked are searched by
+///      their 8x8 patches around their projection, and the pose is refined again with them.
+/// A key-frame is made when the pose is far from every key-frame (distance relative to the
+/// scene depth, or angle) or when too few points are tracked; it adds new map points from
+/// bucketed corners matched along the rows, and is handed to the mapper (mapper.hpp) through
+/// pending_keyframe(). The mapper's bundle adjustment comes back through apply().
+/// When the pose cannot be found the state is kLost and each frame tries to relocalise: the
+/// key-frame whose thumbnail is most like the frame gives the starting pose, and its points are
+/// searched with a wide radius.
+///
+/// Storage: every per-frame buffer, the map points and the key-frame records live in fixed
+/// capacity storage sized by TrackerConfig at construction. track() and apply() allocate nothing.
+///
+/// Threading: one thread owns a Tracker (track(), apply(), the accessors). pending_keyframe()
+/// is valid until the next track() on that thread.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+
+#include "wallar/core/calibration.hpp"
+#include "wallar/core/image.hpp"
+#include "wallar/core/pose.hpp"
+#include "wallar/core/time.hpp"
+#include "wallar/dsp/tracking/features.hpp"
+#include "wallar/dsp/tracking/fixed_vector.hpp"
+#include "wallar/dsp/tracking/gray_image.hpp"
+#include "wallar/dsp/tracking/klt.hpp"
+#include "wallar/dsp/tracking/pose_estimation.hpp"
+#include "wallar/dsp/tracking/stereo_camera.hpp"
+
+namespace wallar::dsp {
+
+enum class TrackingState : std::uint8_t {
+  kInitialising,  //!< no map yet (too few stereo features so far)
+  kTracking,
+  kLost,  //!< the pose could not be found; relocalising
+};
+const char* to_string(TrackingState state);
+
+struct TrackerConfig {
+  int max_tracks = 300;         //!< features tracked per frame
+  int keyframe_points = 800;    //!< new map points a key-frame may add (tracked while room)
+  int max_map_points = 20000;
+  int max_keyframes = 128;      //!< key-frame records kept (a ring) for relocalisation
+  int pyramid_levels = 3;
+  double min_depth_m = 0.25, max_depth_m = 20.0;
+  double keyframe_distance_ratio = 0.12;  //!< of the median scene depth
+  double keyframe_angle_deg = 12.0;
+  double keyframe_track_ratio = 0.5;  //!< fewer tracked points than this x max_tracks: key-frame
+  int min_initial_points = 30;        //!< a map needs this many stereo points to start
+  int stage2_radius_px = 8;
+  int stage2_max_attempts = 200;
+  int relocalise_radius_px = 24;
+  int relocalise_max_points = 120;
+  float max_patch_cost = 14.0f;   //!< zero-mean SAD per pixel accepted by the patch search
+  double depth_sigma_px = 0.5;    //!< disparity noise for a new point's depth uncertainty
+  DetectorParams detector{.bucket_px = 32};
+  KltParams klt;
+  StereoMatchParams stereo;
+  PoseParams pose;
+};
+
+/// One map point (world frame = the first frame's rectified left camera).
+struct MapPoint {
+  Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
+  float sigma_m = 0.0f;            //!< position uncertainty (1 sigma, mostly along the ray)
+  std::uint16_t observations = 0;  //!< key-frames that saw it
+  bool alive = false;
+  std::int32_t keyframe = -1;      //!< the key-frame that made it
+  std::int32_t tracked_frame = -1; //!< last frame it was tracked in
+  std::uint32_t visible = 0, found = 0;  //!< frames it was predicted in view / was found
+  Patch8 patch;                    //!< its look when made (rectified left image)
+};
+
+/// A map point seen in a key-frame.
+struct KeyframeObservation {
+  std::int32_t point = -1;
+  float u_px = 0.0f, v_px = 0.0f;
+  float u_right_px = NAN;
+};
+struct NewMapPoint {
+  std::int32_t point = -1;
+  Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
+  float sigma_m = 0.0f;
+};
+
+/// What the tracker hands the mapper for each new key-frame (fixed capacity).
+struct KeyframeMessage {
+  std::int32_t id = -1;
+  TimeNs t_ns = 0;
+  SE3d T_world_cam = SE3d::Identity();
+  FixedVector<KeyframeObservation> observations;
+  FixedVector<NewMapPoint> new_points;
+
+  KeyframeMessage() = default;
+  explicit KeyframeMessage(std::size_t capacity)
+      : observations(capacity), new_points(capacity) {}
+  void copy_from(const KeyframeMessage& other);  //!< no allocation: capacities must suffice
+};
+
+/// What the mapper hands back after bundle adjustment (fixed capacity).
+struct MapCorrection {
+  struct Point {
+    std::int32_t point = -1;
+    Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
+    float sigma_m = 0.0f;
+  };
+  struct Keyframe {
+    std::int32_t id = -1;
+    SE3d T_world_cam = SE3d::Identity();
+  };
+  FixedVector<Point> points;
+  FixedVector<std::int32_t> culled;
+  FixedVector<Keyframe> keyframes;
+
+  MapCorrection() = default;
+  MapCorrection(std::size_t max_points, std::size_t max_keyframes)
+      : points(max_points), culled(max_points), keyframes(max_keyframes) {}
+  void clear() {
+    points.clear();
+    culled.clear();
+    keyframes.clear();
+  }
+};
+
+/// Per-stage times of one frame, when the caller gives a clock (dsp reads no clock itself).
+struct TrackerTimes {
+  std::int64_t rectify_ns = 0, pyramid_ns = 0, stage1_ns = 0, stage2_ns = 0, keyframe_ns = 0;
+  std::int64_t total_ns = 0;
+};
+
+struct TrackResult {
+  TimeNs t_ns = 0;
+  std::int64_t frame = 0;
+  TrackingState state = TrackingState::kInitialising;
+  SE3d T_world_cam = SE3d::Identity();  //!< rectified left camera in the world
+  int tracked = 0;      //!< stage-1 tracks that survived
+  int found = 0;        //!< stage-2 re-found points
+  int inliers = 0;
+  double rms_px = 0.0;
+  int new_points = 0;
+  bool keyframe = false;
+  bool relocalised = false;
+  TrackerTimes times;
+};
+
+/// An optional rotation prior: the rectified left camera's rotation from the last frame to this
+/// one (R_prev_cur), e.g. integrated from the gyro.
+struct RotationPrior {
+  bool valid = false;
+  Eigen::Quaterniond q_prev_cur = Eigen::Quaterniond::Identity();
+};
+
+class Tracker {
+ public:
+  using Clock = std::int64_t (*)();
+  /// Throws std::invalid_argument for a rig the rectifier cannot use or bad capacities.
+  Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock clock = nullptr);
+  ~Tracker();
+  Tracker(const Tracker&) = delete;
+  Tracker& operator=(const Tracker&) = delete;
+
+  /// Tracks one stereo pair (8-bit gray, the calibration's size; otherwise std::invalid_argument).
+  TrackResult track(TimeNs t_ns, const Image& left, const Image& right,
+                    const RotationPrior& gyro = {});
+
+  /// The key-frame made by the last track(), or nullptr.
+  [[nodiscard]] const KeyframeMessage* pending_keyframe() const;
+  /// Applies the mapper's corrected points and key-frame poses; the current pose moves with its
+  /// reference key-frame. Never allocates.
+  void apply(const MapCorrection& correction);
+  /// Forgets the map and starts again with the next frame.
+  void reset();
+
+  [[nodiscard]] TrackingState state() const;
+  [[nodiscard]] const StereoIntrinsics& intrinsics() const;
+  /// Rectified left camera -> the rig's body frame (T_body_cam0 * R1^T).
+  [[nodiscard]] const SE3d& T_body_rect() const;
+  [[nodiscard]] std::span<const MapPoint> map_points() const;
+  [[nodiscard]] const TrackerConfig& config() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace wallar::dsp

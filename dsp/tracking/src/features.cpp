@@ -1,0 +1,321 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file features.cpp
+/// @brief Segment-test corners, Shi-Tomasi ranking, bucketing, row stereo matching, patches.
+#include "wallar/dsp/tracking/features.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+
+namespace wallar::dsp {
+namespace {
+
+/// The 16 pixels of the radius-3 Bresenham circle, clockwise from the top.
+constexpr std::array<std::array<int, 2>, 16> kCircle{{{0, -3},
+                                                      {1, -3},
+                                                      {2, -2},
+                                                      {3, -1},
+                                                      {3, 0},
+                                                      {3, 1},
+                                                      {2, 2},
+                                                      {1, 3},
+                                                      {0, 3},
+                                                      {-1, 3},
+                                                      {-2, 2},
+                                                      {-3, 1},
+                                                      {-3, 0},
+                                                      {-3, -1},
+                                                      {-2, -2},
+                                                      {-1, -3}}};
+
+/// True when the 16-bit ring mask has 9 contiguous set bits (with wrap-around).
+bool has_arc9(std::uint32_t mask16) {
+  std::uint32_t m = mask16 | (mask16 << 16);
+  std::uint32_t run = m;
+  for (int k = 1; k < 9; ++k) run &= m >> k;
+  return run != 0;
+}
+
+/// Segment-test score at (x, y): 0 when not a corner, else the summed contrast beyond t of the
+/// ring pixels on the winning side.
+std::int16_t segment_test(const GrayView& img, int x, int y, int t) {
+  const std::uint8_t* p = img.row(y) + x;
+  const int c = p[0];
+  const int hi = c + t, lo = c - t;
+  const std::ptrdiff_t s = img.stride;
+  const int top = p[-3 * s], bottom = p[3 * s], right = p[3], left = p[-3];
+  const int bright = (top > hi) + (bottom > hi) + (right > hi) + (left > hi);
+  const int dark = (top < lo) + (bottom < lo) + (right < lo) + (left < lo);
+  if (bright < 2 && dark < 2) return 0;
+  std::uint32_t bright_mask = 0, dark_mask = 0;
+  int bright_sum = 0, dark_sum = 0;
+  for (int i = 0; i < 16; ++i) {
+    const int v = p[kCircle[static_cast<std::size_t>(i)][1] * s + kCircle[static_cast<std::size_t>(i)][0]];
+    if (v > hi) {
+      bright_mask |= 1u << i;
+      bright_sum += v - hi;
+    } else if (v < lo) {
+      dark_mask |= 1u << i;
+      dark_sum += lo - v;
+    }
+  }
+  int score = 0;
+  if (has_arc9(bright_mask)) score = bright_sum;
+  if (has_arc9(dark_mask)) score = std::max(score, dark_sum);
+  if (score == 0 && (has_arc9(bright_mask) || has_arc9(dark_mask))) score = 1;
+  return static_cast<std::int16_t>(std::min(score, 32767));
+}
+
+/// Zero-mean SAD between a left patch (its mean removed) and the right patch at (xr, y).
+float zsad(const GrayView& left, int xl, const GrayView& right, int xr, int y, int hw) {
+  int sum_l = 0, sum_r = 0;
+  for (int dy = -hw; dy <= hw; ++dy) {
+    const std::uint8_t* rl = left.row(y + dy) + xl;
+    const std::uint8_t* rr = right.row(y + dy) + xr;
+    for (int dx = -hw; dx <= hw; ++dx) {
+      sum_l += rl[dx];
+      sum_r += rr[dx];
+    }
+  }
+  const int n = (2 * hw + 1) * (2 * hw + 1);
+  const float offset = static_cast<float>(sum_l - sum_r) / static_cast<float>(n);
+  float cost = 0.0f;
+  for (int dy = -hw; dy <= hw; ++dy) {
+    const std::uint8_t* rl = left.row(y + dy) + xl;
+    const std::uint8_t* rr = right.row(y + dy) + xr;
+    for (int dx = -hw; dx <= hw; ++dx) {
+      cost += std::abs(static_cast<float>(rl[dx]) - static_cast<float>(rr[dx]) - offset);
+    }
+  }
+  return cost / static_cast<float>(n);
+}
+
+/// Vertex offset of the parabola through (-1, a), (0, b), (1, c), clamped to +-0.5.
+float parabola_peak(float a, float b, float c) {
+  const float den = a - 2.0f * b + c;
+  if (!(den > 1e-6f)) return 0.0f;
+  return std::clamp(0.5f * (a - c) / den, -0.5f, 0.5f);
+}
+
+}  // namespace
+
+CornerDetector::CornerDetector(int width, int height, const DetectorParams& params)
+    : params_(params),
+      width_(width),
+      height_(height),
+      cols_((width + params.bucket_px - 1) / params.bucket_px),
+      rows_((height + params.bucket_px - 1) / params.bucket_px),
+      threshold_(params.threshold) {
+  if (width <= 2 * params.border_px || height <= 2 * params.border_px || params.bucket_px <= 0 ||
+      params.per_bucket <= 0 || params.border_px < 4) {
+    throw std::invalid_argument("corner detector: image too small or bad bucket settings");
+  }
+  score_.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), 0);
+  bucket_best_.resize(static_cast<std::size_t>(cols_ * rows_ * params.per_bucket));
+  bucket_n_.resize(static_cast<std::size_t>(cols_ * rows_));
+}
+
+int CornerDetector::bucket_of(float u_px, float v_px) const {
+  const int c = std::clamp(static_cast<int>(u_px) / params_.bucket_px, 0, cols_ - 1);
+  const int r = std::clamp(static_cast<int>(v_px) / params_.bucket_px, 0, rows_ - 1);
+  return r * cols_ + c;
+}
+
+void CornerDetector::detect(const GrayView& image, std::span<const std::uint16_t> occupancy,
+                            FixedVector<Corner>& out) {
+  if (image.width != width_ || image.height != height_) {
+    throw std::invalid_argument("corner detector: the image size does not match");
+  }
+  if (occupancy.size() != static_cast<std::size_t>(bucket_count())) {
+    throw std::invalid_argument("corner detector: occupancy needs one entry per bucket");
+  }
+  out.clear();
+  const int b = params_.border_px;
+  std::fill(score_.begin(), score_.end(), std::int16_t{0});
+  for (int y = b; y < height_ - b; ++y) {
+    std::int16_t* srow = score_.data() + std::ptrdiff_t{y} * width_;
+    for (int x = b; x < width_ - b; ++x) srow[x] = segment_test(image, x, y, threshold_);
+  }
+  std::fill(bucket_n_.begin(), bucket_n_.end(), std::uint8_t{0});
+  int raw = 0;
+  const int k = params_.per_bucket;
+  for (int y = b; y < height_ - b; ++y) {
+    const std::int16_t* s0 = score_.data() + std::ptrdiff_t{y} * width_;
+    for (int x = b; x < width_ - b; ++x) {
+      const std::int16_t s = s0[x];
+      if (s == 0) continue;
+      // 3x3 non-maximum suppression: strictly above the neighbours before, at least the ones after.
+      const std::int16_t* up = s0 - width_;
+      const std::int16_t* down = s0 + width_;
+      if (!(s > up[x - 1] && s > up[x] && s > up[x + 1] && s > s0[x - 1] && s >= s0[x + 1] &&
+            s >= down[x - 1] && s >= down[x] && s >= down[x + 1])) {
+        continue;
+      }
+      ++raw;
+      const int bucket = bucket_of(static_cast<float>(x), static_cast<float>(y));
+      const int room = k - static_cast<int>(occupancy[static_cast<std::size_t>(bucket)]);
+      if (room <= 0) continue;
+      const float st = shi_tomasi_score(image, x, y);
+      if (st < params_.min_shi_tomasi) continue;
+      Corner* best = bucket_best_.data() + static_cast<std::ptrdiff_t>(bucket) * k;
+      int n = bucket_n_[static_cast<std::size_t>(bucket)];
+      if (n == room && best[n - 1].shi_tomasi >= st) continue;
+      if (n < room) ++n;
+      int i = n - 1;  // insertion into the sorted slots, dropping the weakest when full
+      while (i > 0 && best[i - 1].shi_tomasi < st) {
+        best[i] = best[i - 1];
+        --i;
+      }
+      best[i] = Corner{static_cast<float>(x), static_cast<float>(y), st};
+      bucket_n_[static_cast<std::size_t>(bucket)] = static_cast<std::uint8_t>(n);
+    }
+  }
+  for (int bucket = 0; bucket < bucket_count(); ++bucket) {
+    const Corner* best = bucket_best_.data() + static_cast<std::ptrdiff_t>(bucket) * k;
+    for (int i = 0; i < bucket_n_[static_cast<std::size_t>(bucket)]; ++i) {
+      if (!out.push_back(best[i])) break;
+    }
+  }
+  last_raw_ = raw;
+  // Adapt the threshold toward the target count (dark or blank frames lower it, busy ones raise).
+  const int step = std::max(1, threshold_ / 5);
+  if (raw < params_.target_raw_corners / 2) {
+    threshold_ = std::max(params_.threshold_min, threshold_ - step);
+  } else if (raw > 2 * params_.target_raw_corners) {
+    threshold_ = std::min(params_.threshold_max, threshold_ + step);
+  }
+}
+
+float shi_tomasi_score(const GrayView& image, int x, int y, int half) {
+  float a = 0.0f, bb = 0.0f, c = 0.0f;
+  for (int dy = -half; dy <= half; ++dy) {
+    const std::uint8_t* r = image.row(y + dy) + x;
+    const std::uint8_t* ru = r - image.stride;
+    const std::uint8_t* rd = r + image.stride;
+    for (int dx = -half; dx <= half; ++dx) {
+      const float gx = 0.5f * (static_cast<float>(r[dx + 1]) - static_cast<float>(r[dx - 1]));
+      const float gy = 0.5f * (static_cast<float>(rd[dx]) - static_cast<float>(ru[dx]));
+      a += gx * gx;
+      bb += gx * gy;
+      c += gy * gy;
+    }
+  }
+  const float n = static_cast<float>((2 * half + 1) * (2 * half + 1));
+  a /= n;
+  bb /= n;
+  c /= n;
+  const float h = 0.5f * (a - c);
+  return 0.5f * (a + c) - std::sqrt(h * h + bb * bb);
+}
+
+std::optional<float> match_along_row(const GrayView& left, const GrayView& right, float u_px,
+                                     float v_px, int d_min, int d_max,
+                                     const StereoMatchParams& params) {
+  const int hw = params.half_window;
+  const int xl = static_cast<int>(std::lround(u_px));
+  const int y = static_cast<int>(std::lround(v_px));
+  if (y - hw - 1 < 0 || y + hw + 1 >= left.height || xl - hw < 0 || xl + hw >= left.width) {
+    return std::nullopt;
+  }
+  d_min = std::max(d_min, 0);
+  d_max = std::min({d_max, xl - hw - 1, d_min + 511});
+  if (d_max - d_min < 2) return std::nullopt;
+  std::array<float, 512> cost{};
+  int best = -1;
+  for (int d = d_min; d <= d_max; ++d) {
+    const float c = zsad(left, xl, right, xl - d, y, hw);
+    cost[static_cast<std::size_t>(d - d_min)] = c;
+    if (best < 0 || c < cost[static_cast<std::size_t>(best - d_min)]) best = d;
+  }
+  const float c0 = cost[static_cast<std::size_t>(best - d_min)];
+  if (c0 > params.max_cost_per_px || best == d_min || best == d_max) return std::nullopt;
+  float second = std::numeric_limits<float>::infinity();
+  for (int d = d_min; d <= d_max; ++d) {
+    if (std::abs(d - best) > 1) second = std::min(second, cost[static_cast<std::size_t>(d - d_min)]);
+  }
+  if (c0 > params.uniqueness * second) return std::nullopt;
+  // Left-right check: the right patch, searched back along the left row, lands where we began.
+  const int xr = xl - best;
+  int back = -1;
+  float back_cost = 0.0f;
+  for (int d = d_min; d <= d_max; ++d) {
+    if (xr + d + hw >= left.width) break;
+    const float c = zsad(right, xr, left, xr + d, y, hw);
+    if (back < 0 || c < back_cost) {
+      back = d;
+      back_cost = c;
+    }
+  }
+  if (back < 0 || static_cast<float>(std::abs(back - best)) > params.lr_tolerance_px) {
+    return std::nullopt;
+  }
+  const std::size_t i = static_cast<std::size_t>(best - d_min);
+  const float disparity =
+      static_cast<float>(best) + parabola_peak(cost[i - 1], cost[i], cost[i + 1]) +
+      (u_px - static_cast<float>(xl));
+  if (disparity < params.min_disparity_px) return std::nullopt;
+  return disparity;
+}
+
+bool extract_patch(const GrayView& image, float u_px, float v_px, Patch8& out) {
+  const int x = static_cast<int>(std::lround(u_px)), y = static_cast<int>(std::lround(v_px));
+  if (x < 4 || y < 4 || x + 4 > image.width || y + 4 > image.height) return false;
+  for (int r = 0; r < 8; ++r) {
+    std::memcpy(out.px + 8 * r, image.row(y - 4 + r) + (x - 4), 8);
+  }
+  return true;
+}
+
+std::optional<std::pair<float, float>> search_patch(const GrayView& image, const Patch8& patch,
+                                                   float u_px, float v_px, int radius,
+                                                   float* cost) {
+  constexpr int kMaxRadius = 48;
+  radius = std::clamp(radius, 1, kMaxRadius);
+  const int cx = static_cast<int>(std::lround(u_px)), cy = static_cast<int>(std::lround(v_px));
+  const int x0 = std::max(cx - radius, 5), x1 = std::min(cx + radius, image.width - 5);
+  const int y0 = std::max(cy - radius, 5), y1 = std::min(cy + radius, image.height - 5);
+  if (x1 - x0 < 2 || y1 - y0 < 2) return std::nullopt;
+  int patch_sum = 0;
+  for (std::uint8_t v : patch.px) patch_sum += v;
+  std::array<float, (2 * kMaxRadius + 1) * (2 * kMaxRadius + 1)> costs;  // 37 KB of stack
+  const int w = x1 - x0 + 1;
+  int best_x = x0, best_y = y0;
+  float best = std::numeric_limits<float>::infinity();
+  for (int y = y0; y <= y1; ++y) {
+    for (int x = x0; x <= x1; ++x) {
+      int sum = 0;
+      for (int r = 0; r < 8; ++r) {
+        const std::uint8_t* row = image.row(y - 4 + r) + (x - 4);
+        for (int c = 0; c < 8; ++c) sum += row[c];
+      }
+      const float offset = static_cast<float>(patch_sum - sum) / 64.0f;
+      float c = 0.0f;
+      for (int r = 0; r < 8; ++r) {
+        const std::uint8_t* row = image.row(y - 4 + r) + (x - 4);
+        for (int k = 0; k < 8; ++k) {
+          c += std::abs(static_cast<float>(patch.px[8 * r + k]) - static_cast<float>(row[k]) -
+                        offset);
+        }
+      }
+      c /= 64.0f;
+      costs[static_cast<std::size_t>((y - y0) * w + (x - x0))] = c;
+      if (c < best) {
+        best = c;
+        best_x = x;
+        best_y = y;
+      }
+    }
+  }
+  auto at = [&](int x, int y) { return costs[static_cast<std::size_t>((y - y0) * w + (x - x0))]; };
+  float du = 0.0f, dv = 0.0f;
+  if (best_x > x0 && best_x < x1) du = parabola_peak(at(best_x - 1, best_y), best, at(best_x + 1, best_y));
+  if (best_y > y0 && best_y < y1) dv = parabola_peak(at(best_x, best_y - 1), best, at(best_x, best_y + 1));
+  if (cost != nullptr) *cost = best;
+  return std::pair<float, float>{static_cast<float>(best_x) + du, static_cast<float>(best_y) + dv};
+}
+
+}  // namespace wallar::dsp

@@ -1,0 +1,81 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file klt.cpp
+/// @brief Coarse-to-fine translational Lucas-Kanade.
+#include "wallar/dsp/tracking/klt.hpp"
+
+#include <array>
+#include <cmath>
+
+namespace wallar::dsp {
+namespace {
+constexpr int kMaxHalf = 10;
+constexpr std::size_t kMaxWindow = (2 * kMaxHalf + 1) * (2 * kMaxHalf + 1);
+
+/// Full-resolution pixel coordinate to level `level` (2x2-mean pyramids: pixel centres shift).
+float to_level(float x, int level) {
+  return (x + 0.5f) / static_cast<float>(1 << level) - 0.5f;
+}
+float from_level(float x, int level) {
+  return (x + 0.5f) * static_cast<float>(1 << level) - 0.5f;
+}
+}  // namespace
+
+bool klt_track(const Pyramid& prev, const Pyramid& cur, float u0, float v0, float& u, float& v,
+               const KltParams& params) {
+  const int hw = params.half_window > kMaxHalf ? kMaxHalf : params.half_window;
+  const float border = static_cast<float>(hw + 2);
+  std::array<float, kMaxWindow> tmpl, gx, gy;
+  float mean_abs = 0.0f;
+  for (int level = prev.levels() - 1; level >= 0; --level) {
+    const GrayView P = prev.level(level), C = cur.level(level);
+    const float px = to_level(u0, level), py = to_level(v0, level);
+    float qx = to_level(u, level), qy = to_level(v, level);
+    if (!P.inside(px, py, border)) {
+      if (level == 0) return false;
+      continue;  // too close to the border at this scale: refine on the finer levels only
+    }
+    // Template and its gradients (central differences) from the previous image.
+    float a = 0.0f, b = 0.0f, c = 0.0f;
+    std::size_t k = 0;
+    for (int dy = -hw; dy <= hw; ++dy) {
+      for (int dx = -hw; dx <= hw; ++dx, ++k) {
+        const float x = px + static_cast<float>(dx), y = py + static_cast<float>(dy);
+        tmpl[k] = P.sample(x, y);
+        gx[k] = 0.5f * (P.sample(x + 1.0f, y) - P.sample(x - 1.0f, y));
+        gy[k] = 0.5f * (P.sample(x, y + 1.0f) - P.sample(x, y - 1.0f));
+        a += gx[k] * gx[k];
+        b += gx[k] * gy[k];
+        c += gy[k] * gy[k];
+      }
+    }
+    const float n = static_cast<float>(k);
+    const float det = a * c - b * b;
+    const float h = 0.5f * (a - c);
+    const float min_eig = (0.5f * (a + c) - std::sqrt(h * h + b * b)) / n;
+    if (min_eig < params.min_eigen || !(std::abs(det) > 1e-9f)) return false;
+    for (int it = 0; it < params.max_iterations; ++it) {
+      if (!C.inside(qx, qy, border)) return false;
+      float ex = 0.0f, ey = 0.0f;
+      mean_abs = 0.0f;
+      k = 0;
+      for (int dy = -hw; dy <= hw; ++dy) {
+        for (int dx = -hw; dx <= hw; ++dx, ++k) {
+          const float e = C.sample(qx + static_cast<float>(dx), qy + static_cast<float>(dy)) - tmpl[k];
+          ex += e * gx[k];
+          ey += e * gy[k];
+          mean_abs += std::abs(e);
+        }
+      }
+      mean_abs /= n;
+      const float sx = (c * ex - b * ey) / det, sy = (a * ey - b * ex) / det;
+      qx -= sx;
+      qy -= sy;
+      if (sx * sx + sy * sy < params.epsilon_px * params.epsilon_px) break;
+    }
+    u = from_level(qx, level);
+    v = from_level(qy, level);
+  }
+  return std::isfinite(u) && std::isfinite(v) && mean_abs <= params.max_mean_abs;
+}
+
+}  // namespace wallar::dsp

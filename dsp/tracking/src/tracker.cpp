@@ -1,0 +1,643 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file tracker.cpp
+/// @brief Rectify, predict, track (LK + stereo + RANSAC/Gauss-Newton), re-find by patches,
+/// relocalise, and make key-frames with new map points. All storage is sized in the constructor.
+#include "wallar/dsp/tracking/tracker.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <opencv2/calib3d.hpp>
+#include <stdexcept>
+
+#include "wallar/dsp/stereo/rectifier.hpp"
+
+namespace wallar::dsp {
+
+const char* to_string(TrackingState state) {
+  switch (state) {
+    case TrackingState::kInitialising:
+      return "initialising";
+    case TrackingState::kTracking:
+      return "tracking";
+    case TrackingState::kLost:
+      return "lost";
+  }
+  return "?";
+}
+
+void KeyframeMessage::copy_from(const KeyframeMessage& other) {
+  id = other.id;
+  t_ns = other.t_ns;
+  T_world_cam = other.T_world_cam;
+  observations.clear();
+  for (const KeyframeObservation& o : other.observations) observations.push_back(o);
+  new_points.clear();
+  for (const NewMapPoint& p : other.new_points) new_points.push_back(p);
+}
+
+namespace {
+
+constexpr int kThumbBlock = 16;  //!< thumbnails average 16x16 blocks (PTAM's small blurry image)
+
+/// A map point tracked in the current frame.
+struct Track {
+  std::int32_t point = -1;
+  float u_px = 0.0f, v_px = 0.0f;
+  float u_right_px = NAN;
+};
+
+struct KeyframeRecord {
+  std::int32_t id = -1;
+  TimeNs t_ns = 0;
+  SE3d T_world_cam = SE3d::Identity();
+  FixedVector<std::int32_t> points;   //!< map points it observed
+  std::vector<float> thumbnail;       //!< zero-mean block averages, sized once
+};
+
+double rotation_angle_deg(const Eigen::Matrix3d& R) {
+  const double c = std::clamp((R.trace() - 1.0) * 0.5, -1.0, 1.0);
+  return std::acos(c) * 180.0 / M_PI;
+}
+
+}  // namespace
+
+struct Tracker::Impl {
+  TrackerConfig config;
+  Clock clock = nullptr;
+  int width = 0, height = 0;
+  StereoIntrinsics K;
+  SE3d T_body_rect = SE3d::Identity();
+  std::array<RemapTable, 2> remap;
+  std::array<GrayImage, 2> rect;  // current rectified left, right
+  std::array<Pyramid, 2> pyramid;  // left pyramids: [cur_pyr] this frame, the other the last
+  int cur_pyr = 0;
+  CornerDetector detector;
+  FixedVector<Corner> corners;
+  std::vector<std::uint16_t> occupancy;
+
+  FixedVector<MapPoint> points;
+  FixedVector<std::int32_t> free_points;
+  FixedVector<Track> tracks, next_tracks;
+  FixedVector<PoseObservation> obs;
+  FixedVector<std::int32_t> obs_point;
+  FixedVector<std::uint8_t> inlier;
+  FixedVector<std::int32_t> candidates;
+
+  std::vector<KeyframeRecord> keyframes;  // ring of max_keyframes records
+  std::int32_t next_keyframe = 0;
+  std::int32_t reference_keyframe = -1;
+  std::vector<float> thumbnail;  // this frame's
+  int thumb_w = 0, thumb_h = 0;
+  KeyframeMessage message;
+  bool message_pending = false;
+
+  TrackingState state = TrackingState::kInitialising;
+  SE3d T_cw = SE3d::Identity();       // camera <- world, this frame
+  SE3d T_cw_last = SE3d::Identity();  // the last frame's
+  SE3d velocity = SE3d::Identity();   // T_cw = velocity * T_cw_last, constant velocity model
+  std::int64_t frame = -1;
+  std::uint32_t stage2_offset = 0;
+
+  std::int64_t now() const { return clock != nullptr ? clock() : 0; }
+  KeyframeRecord* keyframe_by_id(std::int32_t id) {
+    if (id < 0) return nullptr;
+    KeyframeRecord& k = keyframes[static_cast<std::size_t>(id) % keyframes.size()];
+    return k.id == id ? &k : nullptr;
+  }
+
+  void make_thumbnail(const GrayView& img, std::vector<float>& out) const;
+  void rectify(const Image& left, const Image& right);
+  bool project(const SE3d& T, const Eigen::Vector3d& p_world, double margin, Eigen::Vector3d& uvr,
+               double& depth) const;
+  std::optional<float> right_u(float u, float v, double depth_hint) const;
+  std::int32_t new_point(const Eigen::Vector3d& p_world, float sigma, float u, float v);
+  int add_stereo_points();
+  void stage1(const SE3d& prior, TrackResult& result);
+  void stage2(int radius, TrackResult& result, const KeyframeRecord* only);
+  PoseResult solve(const SE3d& prior, bool ransac);
+  void keep_inlier_tracks();
+  bool relocalise(TrackResult& result);
+  bool need_keyframe() const;
+  void make_keyframe(TimeNs t_ns, TrackResult& result);
+  void initialise(TimeNs t_ns, TrackResult& result);
+};
+
+Tracker::Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock clock)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.config = config;
+  m.clock = clock;
+  if (config.max_tracks < 8 || config.max_map_points < config.max_tracks ||
+      config.max_keyframes < 2 || config.pyramid_levels < 1) {
+    throw std::invalid_argument(
+        "tracker: capacities too small (max_tracks >= 8, max_map_points >= max_tracks, "
+        "max_keyframes >= 2, pyramid_levels >= 1)");
+  }
+  const Rectifier rectifier(rig);
+  m.width = rectifier.size().width;
+  m.height = rectifier.size().height;
+  m.K = StereoIntrinsics{rectifier.f_px(), rectifier.cx(), rectifier.cy(), rectifier.baseline_m()};
+  SE3d T_cam0_rect = SE3d::Identity();
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) T_cam0_rect.linear()(i, j) = rectifier.R(0)(j, i);
+  }
+  m.T_body_rect = rig.cams[0].T_body_cam * T_cam0_rect;
+  for (int cam = 0; cam < 2; ++cam) {
+    cv::Mat map_x, map_y;
+    cv::initUndistortRectifyMap(rectifier.K(cam), rectifier.dist(cam), rectifier.R(cam),
+                                rectifier.P(cam), rectifier.size(), CV_32FC1, map_x, map_y);
+    const std::size_t n = static_cast<std::size_t>(m.width) * static_cast<std::size_t>(m.height);
+    m.remap[static_cast<std::size_t>(cam)] =
+        RemapTable(m.width, m.height, std::span<const float>(map_x.ptr<float>(), n),
+                   std::span<const float>(map_y.ptr<float>(), n), m.width, m.height);
+    m.rect[static_cast<std::size_t>(cam)].allocate(m.width, m.height);
+  }
+  for (Pyramid& p : m.pyramid) p = Pyramid(m.width, m.height, config.pyramid_levels);
+  m.detector = CornerDetector(m.width, m.height, config.detector);
+  const auto max_tracks = static_cast<std::size_t>(config.max_tracks);
+  const auto max_points = static_cast<std::size_t>(config.max_map_points);
+  const auto keyframe_points = static_cast<std::size_t>(config.keyframe_points);
+  m.corners = FixedVector<Corner>(keyframe_points);
+  m.occupancy.assign(static_cast<std::size_t>(m.detector.bucket_count()), 0);
+  m.points = FixedVector<MapPoint>(max_points);
+  m.free_points = FixedVector<std::int32_t>(max_points);
+  m.tracks = FixedVector<Track>(max_tracks);
+  m.next_tracks = FixedVector<Track>(max_tracks);
+  // Relocalisation and stage 2 may gather more observations than tracks.
+  const std::size_t max_obs = max_tracks + static_cast<std::size_t>(std::max(
+                                               config.stage2_max_attempts,
+                                               config.relocalise_max_points));
+  m.obs = FixedVector<PoseObservation>(max_obs);
+  m.obs_point = FixedVector<std::int32_t>(max_obs);
+  m.inlier = FixedVector<std::uint8_t>(max_obs);
+  m.candidates = FixedVector<std::int32_t>(max_points);
+  m.thumb_w = m.width / kThumbBlock;
+  m.thumb_h = m.height / kThumbBlock;
+  m.thumbnail.resize(static_cast<std::size_t>(m.thumb_w * m.thumb_h));
+  m.keyframes.resize(static_cast<std::size_t>(config.max_keyframes));
+  for (KeyframeRecord& k : m.keyframes) {
+    k.points = FixedVector<std::int32_t>(max_tracks + keyframe_points);
+    k.thumbnail.resize(m.thumbnail.size());
+  }
+  m.message = KeyframeMessage(max_tracks + keyframe_points);
+}
+
+Tracker::~Tracker() = default;
+
+TrackingState Tracker::state() const { return impl_->state; }
+const StereoIntrinsics& Tracker::intrinsics() const { return impl_->K; }
+const SE3d& Tracker::T_body_rect() const { return impl_->T_body_rect; }
+std::span<const MapPoint> Tracker::map_points() const { return impl_->points.span(); }
+const TrackerConfig& Tracker::config() const { return impl_->config; }
+const KeyframeMessage* Tracker::pending_keyframe() const {
+  return impl_->message_pending ? &impl_->message : nullptr;
+}
+
+void Tracker::reset() {
+  Impl& m = *impl_;
+  m.points.clear();
+  m.free_points.clear();
+  m.tracks.clear();
+  for (KeyframeRecord& k : m.keyframes) k.id = -1;
+  m.next_keyframe = 0;
+  m.reference_keyframe = -1;
+  m.state = TrackingState::kInitialising;
+  m.T_cw = m.T_cw_last = m.velocity = SE3d::Identity();
+  m.message_pending = false;
+}
+
+void Tracker::Impl::make_thumbnail(const GrayView& img, std::vector<float>& out) const {
+  double mean = 0.0;
+  for (int ty = 0; ty < thumb_h; ++ty) {
+    for (int tx = 0; tx < thumb_w; ++tx) {
+      int sum = 0;
+      for (int y = 0; y < kThumbBlock; ++y) {
+        const std::uint8_t* r = img.row(ty * kThumbBlock + y) + tx * kThumbBlock;
+        for (int x = 0; x < kThumbBlock; ++x) sum += r[x];
+      }
+      const float v = static_cast<float>(sum) / (kThumbBlock * kThumbBlock);
+      out[static_cast<std::size_t>(ty * thumb_w + tx)] = v;
+      mean += v;
+    }
+  }
+  mean /= static_cast<double>(out.size());
+  for (float& v : out) v -= static_cast<float>(mean);
+}
+
+void Tracker::Impl::rectify(const Image& left, const Image& right) {
+  const std::array<const Image*, 2> in{&left, &right};
+  for (std::size_t i = 0; i < 2; ++i) {
+    const Image& im = *in[i];
+    if (im.empty() || im.format() != PixelFormat::kGray8) {
+      throw std::invalid_argument("tracker: expected 8-bit gray images");
+    }
+    if (im.width() != width || im.height() != height) {
+      throw std::invalid_argument("tracker: the image size does not match the calibration's");
+    }
+    remap[i].apply(GrayView{im.data(), im.width(), im.height(), im.stride_bytes()},
+                   rect[i].data());
+  }
+}
+
+bool Tracker::Impl::project(const SE3d& T, const Eigen::Vector3d& p_world, double margin,
+                            Eigen::Vector3d& uvr, double& depth) const {
+  const Eigen::Vector3d p = T * p_world;
+  depth = p.z();
+  if (!(depth > config.min_depth_m * 0.5) || depth > config.max_depth_m * 2.0) return false;
+  uvr = K.project(p);
+  return uvr.x() >= margin && uvr.y() >= margin && uvr.x() < width - 1 - margin &&
+         uvr.y() < height - 1 - margin;
+}
+
+std::optional<float> Tracker::Impl::right_u(float u, float v, double depth_hint) const {
+  int d_min = 0, d_max = 0;
+  if (depth_hint > 0.0) {
+    const double d = K.f_px * K.baseline_m / depth_hint;
+    d_min = static_cast<int>(std::floor(d * 0.8)) - 3;
+    d_max = static_cast<int>(std::ceil(d * 1.25)) + 3;
+  } else {
+    d_min = static_cast<int>(std::floor(K.f_px * K.baseline_m / config.max_depth_m));
+    d_max = static_cast<int>(std::ceil(K.f_px * K.baseline_m / config.min_depth_m));
+  }
+  const std::optional<float> d =
+      match_along_row(rect[0].view(), rect[1].view(), u, v, d_min, d_max, config.stereo);
+  if (!d) return std::nullopt;
+  return u - *d;
+}
+
+std::int32_t Tracker::Impl::new_point(const Eigen::Vector3d& p_world, float sigma, float u,
+                                      float v) {
+  std::int32_t id = -1;
+  if (!free_points.empty()) {
+    id = free_points.back();
+    free_points.pop_back();
+  } else if (points.push_back(MapPoint{})) {
+    id = static_cast<std::int32_t>(points.size() - 1);
+  } else {
+    return -1;  // the map is full
+  }
+  MapPoint& p = points[static_cast<std::size_t>(id)];
+  p = MapPoint{};
+  p.p_world = p_world;
+  p.sigma_m = sigma;
+  p.alive = true;
+  p.keyframe = next_keyframe;
+  p.tracked_frame = static_cast<std::int32_t>(frame);
+  extract_patch(rect[0].view(), u, v, p.patch);
+  return id;
+}
+
+/// New map points from corners in buckets that hold fewer than per_bucket tracks, matched along
+/// the rows and triangulated. Each is observed by the key-frame being made (message) and tracked
+/// from now on while there is room for tracks; the others wait in the map for stage 2.
+int Tracker::Impl::add_stereo_points() {
+  std::fill(occupancy.begin(), occupancy.end(), std::uint16_t{0});
+  for (const Track& t : tracks) {
+    ++occupancy[static_cast<std::size_t>(detector.bucket_of(t.u_px, t.v_px))];
+  }
+  detector.detect(rect[0].view(), occupancy, corners);
+  const SE3d T_wc = T_cw.inverse();
+  int added = 0;
+  for (const Corner& c : corners) {
+    const std::optional<float> ur = right_u(c.u_px, c.v_px, -1.0);
+    if (!ur) continue;
+    const double disparity = c.u_px - *ur;
+    const Eigen::Vector3d p_cam = K.triangulate(c.u_px, c.v_px, disparity);
+    if (p_cam.z() < config.min_depth_m || p_cam.z() > config.max_depth_m) continue;
+    const float sigma = static_cast<float>(p_cam.z() * p_cam.z() / (K.f_px * K.baseline_m) *
+                                           config.depth_sigma_px);
+    if (message.observations.full()) break;
+    const std::int32_t id = new_point(T_wc * p_cam, sigma, c.u_px, c.v_px);
+    if (id < 0) break;  // the map is full
+    tracks.push_back(Track{id, c.u_px, c.v_px, *ur});  // false when the tracks are full
+    message.observations.push_back(KeyframeObservation{id, c.u_px, c.v_px, *ur});
+    message.new_points.push_back(
+        NewMapPoint{id, points[static_cast<std::size_t>(id)].p_world, sigma});
+    ++added;
+  }
+  return added;
+}
+
+PoseResult Tracker::Impl::solve(const SE3d& prior, bool ransac) {
+  PoseParams params = config.pose;
+  if (!ransac) params.ransac_iterations = 0;
+  inlier.resize(obs.size());
+  return estimate_pose(K, obs.span(), prior, inlier.span(),
+                       static_cast<std::uint64_t>(frame) * 7919u + 17u, params);
+}
+
+/// Keeps the tracks whose observation was an inlier (obs and tracks are index-aligned).
+void Tracker::Impl::keep_inlier_tracks() {
+  next_tracks.clear();
+  for (std::size_t i = 0; i < obs.size(); ++i) {
+    if (inlier[i] == 0) continue;
+    const PoseObservation& o = obs[i];
+    next_tracks.push_back(Track{obs_point[i], o.u_px, o.v_px, o.u_right_px});
+    MapPoint& p = points[static_cast<std::size_t>(obs_point[i])];
+    ++p.found;
+    p.tracked_frame = static_cast<std::int32_t>(frame);
+  }
+  std::swap(tracks, next_tracks);
+}
+
+void Tracker::Impl::stage1(const SE3d& prior, TrackResult& result) {
+  const Pyramid& prev = pyramid[static_cast<std::size_t>(1 - cur_pyr)];
+  const Pyramid& cur = pyramid[static_cast<std::size_t>(cur_pyr)];
+  obs.clear();
+  obs_point.clear();
+  for (const Track& t : tracks) {
+    MapPoint& p = points[static_cast<std::size_t>(t.point)];
+    if (!p.alive) continue;
+    Eigen::Vector3d uvr;
+    double depth = 0.0;
+    float u = t.u_px, v = t.v_px;
+    if (project(prior, p.p_world, 0.0, uvr, depth)) {
+      u = static_cast<float>(uvr.x());
+      v = static_cast<float>(uvr.y());
+    }
+    if (!klt_track(prev, cur, t.u_px, t.v_px, u, v, config.klt)) continue;
+    const std::optional<float> ur = right_u(u, v, depth);
+    PoseObservation o;
+    o.p_world = p.p_world;
+    o.u_px = u;
+    o.v_px = v;
+    o.u_right_px = ur ? *ur : NAN;
+    obs.push_back(o);
+    obs_point.push_back(t.point);
+    p.tracked_frame = static_cast<std::int32_t>(frame);  // stage 2 leaves it alone
+  }
+  result.tracked = static_cast<int>(obs.size());
+}
+
+/// Searches map points in view that are not tracked this frame by their patches. With `only`,
+/// just that key-frame's points (relocalisation).
+void Tracker::Impl::stage2(int radius, TrackResult& result, const KeyframeRecord* only) {
+  candidates.clear();
+  std::fill(occupancy.begin(), occupancy.end(), std::uint16_t{0});
+  for (std::size_t i = 0; i < obs.size(); ++i) {
+    ++occupancy[static_cast<std::size_t>(detector.bucket_of(obs[i].u_px, obs[i].v_px))];
+  }
+  const int limit = only != nullptr ? config.relocalise_max_points : config.stage2_max_attempts;
+  const auto consider = [&](std::int32_t id) {
+    MapPoint& p = points[static_cast<std::size_t>(id)];
+    if (!p.alive || p.tracked_frame == static_cast<std::int32_t>(frame)) return;
+    Eigen::Vector3d uvr;
+    double depth = 0.0;
+    if (!project(T_cw, p.p_world, 8.0, uvr, depth)) return;
+    ++p.visible;
+    const int b = detector.bucket_of(static_cast<float>(uvr.x()), static_cast<float>(uvr.y()));
+    if (occupancy[static_cast<std::size_t>(b)] >= config.detector.per_bucket) return;
+    if (static_cast<int>(candidates.size()) >= limit || obs.full()) return;
+    float cost = 0.0f;
+    const auto hit = search_patch(rect[0].view(), p.patch, static_cast<float>(uvr.x()),
+                                  static_cast<float>(uvr.y()), radius, &cost);
+    candidates.push_back(id);
+    if (!hit || cost > config.max_patch_cost) return;
+    const std::optional<float> ur = right_u(hit->first, hit->second, depth);
+    PoseObservation o;
+    o.p_world = p.p_world;
+    o.u_px = hit->first;
+    o.v_px = hit->second;
+    o.u_right_px = ur ? *ur : NAN;
+    obs.push_back(o);
+    obs_point.push_back(id);
+    p.tracked_frame = static_cast<std::int32_t>(frame);  // not searched twice this frame
+    ++occupancy[static_cast<std::size_t>(b)];
+    ++result.found;
+  };
+  if (only != nullptr) {
+    for (std::int32_t id : only->points) consider(id);
+    return;
+  }
+  // Start at a rotating offset so every part of the map gets its turn.
+  const std::size_t n = points.size();
+  if (n == 0) return;
+  const std::size_t start = stage2_offset % n;
+  for (std::size_t k = 0; k < n && static_cast<int>(candidates.size()) < limit; ++k) {
+    consider(static_cast<std::int32_t>((start + k) % n));
+  }
+  stage2_offset += 97;
+}
+
+bool Tracker::Impl::relocalise(TrackResult& result) {
+  make_thumbnail(rect[0].view(), thumbnail);
+  const KeyframeRecord* best = nullptr;
+  double best_ssd = std::numeric_limits<double>::infinity();
+  for (const KeyframeRecord& k : keyframes) {
+    if (k.id < 0) continue;
+    double ssd = 0.0;
+    for (std::size_t i = 0; i < thumbnail.size(); ++i) {
+      const double d = thumbnail[i] - k.thumbnail[i];
+      ssd += d * d;
+    }
+    if (ssd < best_ssd) {
+      best_ssd = ssd;
+      best = &k;
+    }
+  }
+  if (best == nullptr) return false;
+  T_cw = best->T_world_cam.inverse();
+  obs.clear();
+  obs_point.clear();
+  for (std::int32_t id : best->points) {
+    if (id >= 0 && static_cast<std::size_t>(id) < points.size()) {
+      points[static_cast<std::size_t>(id)].tracked_frame = -1;
+    }
+  }
+  stage2(config.relocalise_radius_px, result, best);
+  if (static_cast<int>(obs.size()) < config.pose.min_inliers) return false;
+  const PoseResult pose = solve(T_cw, true);
+  if (!pose.ok) return false;
+  T_cw = pose.T_cam_world;
+  keep_inlier_tracks();
+  result.inliers = pose.inliers;
+  result.rms_px = pose.rms_px;
+  reference_keyframe = best->id;
+  return true;
+}
+
+bool Tracker::Impl::need_keyframe() const {
+  if (static_cast<double>(tracks.size()) <
+      config.keyframe_track_ratio * static_cast<double>(config.max_tracks)) {
+    return true;
+  }
+  // Median depth of the tracked points sets the distance scale.
+  std::array<float, 64> depths{};
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < tracks.size() && n < depths.size(); i += std::max<std::size_t>(1, tracks.size() / 64)) {
+    depths[n++] = static_cast<float>((T_cw * points[static_cast<std::size_t>(tracks[i].point)].p_world).z());
+  }
+  if (n == 0) return true;
+  std::nth_element(depths.begin(), depths.begin() + static_cast<std::ptrdiff_t>(n / 2),
+                   depths.begin() + static_cast<std::ptrdiff_t>(n));
+  const double median_depth = std::max(0.5, static_cast<double>(depths[n / 2]));
+  const SE3d T_wc = T_cw.inverse();
+  for (const KeyframeRecord& k : keyframes) {
+    if (k.id < 0) continue;
+    const double distance = (k.T_world_cam.translation() - T_wc.translation()).norm();
+    const double angle = rotation_angle_deg(k.T_world_cam.linear().transpose() * T_wc.linear());
+    if (distance < config.keyframe_distance_ratio * median_depth &&
+        angle < config.keyframe_angle_deg) {
+      return false;  // near this key-frame
+    }
+  }
+  return true;
+}
+
+void Tracker::Impl::make_keyframe(TimeNs t_ns, TrackResult& result) {
+  const std::int32_t id = next_keyframe;
+  message.id = id;
+  message.t_ns = t_ns;
+  message.T_world_cam = T_cw.inverse();
+  message.observations.clear();
+  message.new_points.clear();
+  for (const Track& t : tracks) {
+    message.observations.push_back(KeyframeObservation{t.point, t.u_px, t.v_px, t.u_right_px});
+  }
+  result.new_points = add_stereo_points();
+  KeyframeRecord& k = keyframes[static_cast<std::size_t>(id) % keyframes.size()];
+  k.id = id;
+  k.t_ns = t_ns;
+  k.T_world_cam = message.T_world_cam;
+  k.points.clear();
+  for (const KeyframeObservation& o : message.observations) {
+    k.points.push_back(o.point);
+    MapPoint& p = points[static_cast<std::size_t>(o.point)];
+    if (p.observations < 65535) ++p.observations;
+  }
+  make_thumbnail(rect[0].view(), k.thumbnail);
+  reference_keyframe = id;
+  ++next_keyframe;
+  message_pending = true;
+  result.keyframe = true;
+}
+
+void Tracker::Impl::initialise(TimeNs t_ns, TrackResult& result) {
+  tracks.clear();
+  points.clear();
+  free_points.clear();
+  T_cw = SE3d::Identity();
+  make_keyframe(t_ns, result);
+  if (result.new_points < config.min_initial_points) {
+    // Not enough structure (blank wall, dark frame): forget this attempt, try the next frame.
+    keyframes[0].id = -1;
+    next_keyframe = 0;
+    reference_keyframe = -1;
+    points.clear();
+    tracks.clear();
+    message_pending = false;
+    result.keyframe = false;
+    result.new_points = 0;
+    return;
+  }
+  state = TrackingState::kTracking;
+  result.inliers = result.new_points;
+}
+
+TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
+                           const RotationPrior& gyro) {
+  Impl& m = *impl_;
+  TrackResult result;
+  result.t_ns = t_ns;
+  const std::int64_t t0 = m.now();
+  m.message_pending = false;
+  m.rectify(left, right);
+  const std::int64_t t1 = m.now();
+  ++m.frame;
+  result.frame = m.frame;
+  m.cur_pyr = 1 - m.cur_pyr;
+  m.pyramid[static_cast<std::size_t>(m.cur_pyr)].build(m.rect[0].view());
+  const std::int64_t t2 = m.now();
+  std::int64_t t3 = t2, t4 = t2;
+
+  if (m.state == TrackingState::kInitialising) {
+    m.initialise(t_ns, result);
+    t3 = t4 = m.now();
+  } else {
+    // Prediction: constant velocity, with the gyro's rotation when given.
+    SE3d prior = orthonormalised(m.velocity * m.T_cw);
+    if (gyro.valid) {
+      prior.linear() = gyro.q_prev_cur.conjugate().toRotationMatrix() * m.T_cw.linear();
+    }
+    bool ok = false;
+    if (m.state == TrackingState::kTracking) {
+      m.stage1(prior, result);
+      PoseResult pose;
+      if (!m.obs.empty()) pose = m.solve(prior, true);
+      t3 = m.now();
+      if (pose.ok) m.T_cw = pose.T_cam_world;
+      // Stage 2 when the tracks thin out (or stage 1 failed): re-find map points by patch.
+      if (!pose.ok || pose.inliers < static_cast<int>(0.8 * m.config.max_tracks)) {
+        if (!pose.ok) m.T_cw = prior;
+        m.stage2(m.config.stage2_radius_px, result, nullptr);
+        if (!m.obs.empty()) pose = m.solve(m.T_cw, !pose.ok);
+      }
+      if (pose.ok) {
+        m.T_cw = pose.T_cam_world;
+        m.keep_inlier_tracks();
+        result.inliers = pose.inliers;
+        result.rms_px = pose.rms_px;
+        ok = true;
+      }
+      t4 = m.now();
+    }
+    if (!ok) {
+      // Lost: relocalise against the key-frames; meanwhile hold the last pose (never NaN).
+      const SE3d held = m.T_cw_last;
+      if (m.relocalise(result)) {
+        ok = true;
+        result.relocalised = true;
+      } else {
+        m.T_cw = held;
+        m.tracks.clear();
+      }
+      t3 = t4 = m.now();
+    }
+    m.state = ok ? TrackingState::kTracking : TrackingState::kLost;
+    if (ok) {
+      m.velocity = orthonormalised(m.T_cw * m.T_cw_last.inverse());
+      if (m.need_keyframe()) m.make_keyframe(t_ns, result);
+    } else {
+      m.velocity = SE3d::Identity();
+    }
+  }
+  m.T_cw_last = m.T_cw;
+  const std::int64_t t5 = m.now();
+  result.state = m.state;
+  result.T_world_cam = m.T_cw.inverse();
+  result.times = TrackerTimes{t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t5 - t0};
+  return result;
+}
+
+void Tracker::apply(const MapCorrection& correction) {
+  Impl& m = *impl_;
+  for (const MapCorrection::Point& c : correction.points) {
+    if (c.point < 0 || static_cast<std::size_t>(c.point) >= m.points.size()) continue;
+    MapPoint& p = m.points[static_cast<std::size_t>(c.point)];
+    if (!p.alive || !c.p_world.allFinite()) continue;
+    p.p_world = c.p_world;
+    p.sigma_m = c.sigma_m;
+  }
+  for (std::int32_t id : correction.culled) {
+    if (id < 0 || static_cast<std::size_t>(id) >= m.points.size()) continue;
+    MapPoint& p = m.points[static_cast<std::size_t>(id)];
+    if (p.alive && !m.free_points.full()) {
+      p.alive = false;
+      m.free_points.push_back(id);
+    }
+  }
+  for (const MapCorrection::Keyframe& c : correction.keyframes) {
+    KeyframeRecord* k = m.keyframe_by_id(c.id);
+    if (k == nullptr || !c.T_world_cam.matrix().allFinite()) continue;
+    if (c.id == m.reference_keyframe) {
+      // The camera keeps its pose relative to its reference key-frame.
+      const SE3d shift = c.T_world_cam * k->T_world_cam.inverse();  // old world -> new world
+      m.T_cw = orthonormalised(m.T_cw * shift.inverse());
+      m.T_cw_last = orthonormalised(m.T_cw_last * shift.inverse());
+    }
+    k->T_world_cam = c.T_world_cam;
+  }
+}
+
+}  // namespace wallar::dsp
