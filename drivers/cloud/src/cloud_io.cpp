@@ -1043,35 +1043,9 @@ PointCloud read_cloud(const std::filesystem::path& path, CloudReadStats* stats) 
   return parse(bytes, path.string(), stats);
 }
 
-void write_ply_rgb(const std::filesystem::path& path, const PointCloud& cloud,
-                   std::span<const std::array<std::uint8_t, 3>> rgb) {
-  const std::size_t n = cloud.size();
-  if (!cloud.consistent()) throw std::invalid_argument("write_ply_rgb: inconsistent point cloud");
-  if (rgb.size() != n) {
-    throw std::invalid_argument("write_ply_rgb: " + std::to_string(rgb.size()) + " colours for " +
-                                std::to_string(n) + " points");
-  }
-  std::string buf =
-      "ply\nformat binary_little_endian 1.0\ncomment written by wallar\nelement vertex " +
-      std::to_string(n) +
-      "\nproperty float x\nproperty float y\nproperty float z\n"
-      "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n";
-  const std::size_t header = buf.size();
-  buf.resize(header + n * 15);
-  char* p = buf.data() + header;
-  const auto put = [&p](float f) {
-    std::uint32_t u = std::bit_cast<std::uint32_t>(f);
-    if constexpr (std::endian::native == std::endian::big) u = __builtin_bswap32(u);
-    std::memcpy(p, &u, 4);
-    p += 4;
-  };
-  for (std::size_t i = 0; i < n; ++i) {
-    put(cloud.x[i]);
-    put(cloud.y[i]);
-    put(cloud.z[i]);
-    for (std::uint8_t c : rgb[i]) *p++ = static_cast<char>(c);
-  }
-
+namespace {
+/// Writes `buf` to PATH.part and renames it into place (a file never looks complete early).
+void write_file_via_part(const std::filesystem::path& path, const std::string& buf) {
   std::filesystem::path tmp = path;
   tmp += ".part";
   {
@@ -1088,6 +1062,70 @@ void write_ply_rgb(const std::filesystem::path& path, const PointCloud& cloud,
   if (ec)
     throw_input_error(path.string(), 0,
                       "cannot rename " + tmp.filename().string() + ": " + ec.message());
+}
+
+void put_f32(char*& p, float f) {
+  std::uint32_t u = std::bit_cast<std::uint32_t>(f);
+  if constexpr (std::endian::native == std::endian::big) u = __builtin_bswap32(u);
+  std::memcpy(p, &u, 4);
+  p += 4;
+}
+}  // namespace
+
+void write_ply_rgb(const std::filesystem::path& path, const PointCloud& cloud,
+                   std::span<const std::array<std::uint8_t, 3>> rgb) {
+  const std::size_t n = cloud.size();
+  if (!cloud.consistent()) throw std::invalid_argument("write_ply_rgb: inconsistent point cloud");
+  if (rgb.size() != n) {
+    throw std::invalid_argument("write_ply_rgb: " + std::to_string(rgb.size()) + " colours for " +
+                                std::to_string(n) + " points");
+  }
+  std::string buf =
+      "ply\nformat binary_little_endian 1.0\ncomment written by wallar\nelement vertex " +
+      std::to_string(n) +
+      "\nproperty float x\nproperty float y\nproperty float z\n"
+      "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n";
+  const std::size_t header = buf.size();
+  buf.resize(header + n * 15);
+  char* p = buf.data() + header;
+  for (std::size_t i = 0; i < n; ++i) {
+    put_f32(p, cloud.x[i]);
+    put_f32(p, cloud.y[i]);
+    put_f32(p, cloud.z[i]);
+    for (std::uint8_t c : rgb[i]) *p++ = static_cast<char>(c);
+  }
+
+  write_file_via_part(path, buf);
+}
+
+void write_ply_map(const std::filesystem::path& path, const PointCloud& cloud,
+                   std::span<const float> sigma_m) {
+  const std::size_t n = cloud.size();
+  if (!cloud.consistent()) throw std::invalid_argument("write_ply_map: inconsistent point cloud");
+  if ((!sigma_m.empty() && sigma_m.size() != n) ||
+      (cloud.has_observations() && cloud.observations.size() != n)) {
+    throw std::invalid_argument("write_ply_map: sigma or observations not one per point");
+  }
+  std::string buf =
+      "ply\nformat binary_little_endian 1.0\ncomment written by wallar: a sparse map\n"
+      "element vertex " +
+      std::to_string(n) +
+      "\nproperty float x\nproperty float y\nproperty float z\nproperty float sigma\n"
+      "property ushort observations\nend_header\n";
+  const std::size_t header = buf.size();
+  buf.resize(header + n * 18);
+  char* p = buf.data() + header;
+  for (std::size_t i = 0; i < n; ++i) {
+    put_f32(p, cloud.x[i]);
+    put_f32(p, cloud.y[i]);
+    put_f32(p, cloud.z[i]);
+    put_f32(p, sigma_m.empty() ? 0.0f : sigma_m[i]);
+    std::uint16_t obs = cloud.has_observations() ? cloud.observations[i] : 0;
+    if constexpr (std::endian::native == std::endian::big) obs = __builtin_bswap16(obs);
+    std::memcpy(p, &obs, 2);
+    p += 2;
+  }
+  write_file_via_part(path, buf);
 }
 
 }  // namespace wallar::cloud

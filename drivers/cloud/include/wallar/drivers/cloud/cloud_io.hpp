@@ -73,4 +73,10 @@ std::string lzf_decompress(std::string_view in, std::size_t out_size, const std:
 void write_ply_rgb(const std::filesystem::path& path, const PointCloud& cloud,
                    std::span<const std::array<std::uint8_t, 3>> rgb);
 
+/// Writes a sparse map as binary little-endian PLY: float x, y, z, float sigma (position
+/// uncertainty [m], 0 when `sigma_m` is empty) and ushort observations per point, which
+/// read_cloud reads back as the observation count. Atomic like write_ply_rgb.
+void write_ply_map(const std::filesystem::path& path, const PointCloud& cloud,
+                   std::span<const float> sigma_m);
+
 }  // namespace wallar::cloud

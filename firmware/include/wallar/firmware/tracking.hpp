@@ -1,0 +1,93 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file tracking.hpp
+/// @brief Tracking and mapping wired together (thesis fig. 3.3: tracking and mapping on their
+/// own threads): the Tracker on the caller's thread, the Mapper on a mapping thread that it
+/// never waits for, and the gyro's rotation between frames as the tracker's prior.
+///
+/// Tracker -> mapper: key-frames through a lock-free SPSC ring of fixed-size slots (a full ring
+/// drops the key-frame and counts it; tracking never blocks). Mapper -> tracker: corrections
+/// through a second ring, applied at the start of the next frame. The mapper runs a local
+/// bundle adjustment after each key-frame and a global one when it has been idle; it publishes
+/// a map snapshot after each.
+/// In lock-step mode (no thread) the mapper runs right after each key-frame on the caller's
+/// thread: slower per key-frame, but bit-for-bit repeatable (tests, evaluation).
+///
+/// Threading: on_imu() and on_stereo() belong to one thread (the tracking thread);
+/// latest_map() may be called from any thread; finish() from the tracking thread, once.
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "wallar/core/imu_sample.hpp"
+#include "wallar/core/spsc_ring.hpp"
+#include "wallar/core/stereo_frame.hpp"
+#include "wallar/dsp/tracking/mapper.hpp"
+#include "wallar/dsp/tracking/tracker.hpp"
+
+namespace wallar::firmware {
+
+struct TrackingOptions {
+  dsp::TrackerConfig tracker;
+  dsp::MapperConfig mapper;
+  bool mapping_thread = true;  //!< false: lock step (repeatable)
+  bool use_gyro = true;
+  int imu_capacity = 4096;     //!< gyro samples kept between frames
+};
+
+struct TrackingCounters {
+  std::uint64_t frames = 0, keyframes = 0, keyframes_dropped = 0, corrections_applied = 0;
+  std::uint64_t lost_frames = 0, relocalisations = 0, local_adjustments = 0,
+                global_adjustments = 0, culled_points = 0;
+};
+
+class TrackingSystem {
+ public:
+  TrackingSystem(const RigCalibration& rig, const TrackingOptions& options,
+                 dsp::Tracker::Clock clock = nullptr);
+  ~TrackingSystem();  // stops the mapping thread
+  TrackingSystem(const TrackingSystem&) = delete;
+  TrackingSystem& operator=(const TrackingSystem&) = delete;
+
+  void on_imu(const ImuSample& sample);
+  dsp::TrackResult on_stereo(const StereoFrame& frame);
+  /// Stops the mapping thread after it has taken every key-frame, runs a global bundle
+  /// adjustment and returns the final map.
+  std::shared_ptr<const dsp::MapSnapshot> finish();
+  /// The newest published map (null before the first key-frame was mapped).
+  [[nodiscard]] std::shared_ptr<const dsp::MapSnapshot> latest_map() const;
+
+  [[nodiscard]] const dsp::Tracker& tracker() const { return tracker_; }
+  [[nodiscard]] TrackingCounters counters() const;
+  /// Wall time of each local bundle adjustment [ns] (mapping time per key-frame).
+  [[nodiscard]] std::vector<std::int64_t> mapping_times_ns() const;
+
+ private:
+  void mapping_loop();
+  void map_keyframe(const dsp::KeyframeMessage& message, dsp::MapCorrection& out);
+  void publish_map();
+  dsp::RotationPrior gyro_prior(TimeNs t_ns);
+
+  TrackingOptions options_;
+  dsp::Tracker tracker_;
+  dsp::Mapper mapper_;
+  SE3d T_rect_imu_ = SE3d::Identity();
+  SpscRing<dsp::KeyframeMessage> keyframes_;
+  SpscRing<dsp::MapCorrection> corrections_;
+  dsp::MapCorrection lockstep_correction_;
+  std::vector<ImuSample> gyro_;  // ring, sized once
+  std::size_t gyro_head_ = 0, gyro_count_ = 0;
+  TimeNs last_frame_t_ns_ = -1;
+  TrackingCounters counters_;
+  std::atomic<std::uint64_t> local_adjustments_{0}, global_adjustments_{0}, culled_{0};
+  mutable std::mutex map_mutex_;  // guards map_ and mapping_times_ (mapping side only)
+  std::shared_ptr<const dsp::MapSnapshot> map_;
+  std::vector<std::int64_t> mapping_times_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+}  // namespace wallar::firmware

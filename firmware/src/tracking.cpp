@@ -1,0 +1,206 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file tracking.cpp
+/// @brief The tracker on the caller's thread, the mapper on its own, rings between them.
+#include "wallar/firmware/tracking.hpp"
+
+#include <chrono>
+
+namespace wallar::firmware {
+namespace {
+constexpr std::size_t kKeyframeSlots = 4;
+constexpr std::size_t kCorrectionSlots = 4;
+constexpr int kKeyframesPerGlobalAdjustment = 5;
+/// Key-frame poses one correction carries (the tracker keeps fewer records than this).
+constexpr std::size_t kMaxCorrectedKeyframes = 4096;
+}  // namespace
+
+TrackingSystem::TrackingSystem(const RigCalibration& rig, const TrackingOptions& options,
+                               dsp::Tracker::Clock clock)
+    : options_(options),
+      tracker_(rig, options.tracker, clock),
+      mapper_(tracker_.intrinsics(), options.mapper),
+      keyframes_(kKeyframeSlots,
+                 [&] {
+                   return dsp::KeyframeMessage(static_cast<std::size_t>(
+                       options.tracker.max_tracks + options.tracker.keyframe_points));
+                 }),
+      corrections_(kCorrectionSlots,
+                   [&] {
+                     return dsp::MapCorrection(
+                         static_cast<std::size_t>(options.tracker.max_map_points),
+                         kMaxCorrectedKeyframes);
+                   }),
+      lockstep_correction_(static_cast<std::size_t>(options.tracker.max_map_points),
+                           kMaxCorrectedKeyframes),
+      gyro_(static_cast<std::size_t>(std::max(16, options.imu_capacity))) {
+  T_rect_imu_ = tracker_.T_body_rect().inverse() * rig.imu.T_body_imu;
+  if (options_.mapping_thread) thread_ = std::thread([this] { mapping_loop(); });
+}
+
+TrackingSystem::~TrackingSystem() {
+  stop_.store(true);
+  if (thread_.joinable()) thread_.join();
+}
+
+void TrackingSystem::on_imu(const ImuSample& sample) {
+  gyro_[gyro_head_] = sample;
+  gyro_head_ = (gyro_head_ + 1) % gyro_.size();
+  gyro_count_ = std::min(gyro_count_ + 1, gyro_.size());
+}
+
+dsp::RotationPrior TrackingSystem::gyro_prior(TimeNs t_ns) {
+  dsp::RotationPrior prior;
+  if (!options_.use_gyro || last_frame_t_ns_ < 0 || gyro_count_ < 2) return prior;
+  // Integrate the gyro over (last frame, this frame], midpoint rule, body frame.
+  Eigen::Quaterniond q_prev_cur = Eigen::Quaterniond::Identity();
+  const std::size_t first = (gyro_head_ + gyro_.size() - gyro_count_) % gyro_.size();
+  int used = 0;
+  for (std::size_t k = 1; k < gyro_count_; ++k) {
+    const ImuSample& a = gyro_[(first + k - 1) % gyro_.size()];
+    const ImuSample& b = gyro_[(first + k) % gyro_.size()];
+    const TimeNs t0 = std::max(a.t_ns, last_frame_t_ns_), t1 = std::min(b.t_ns, t_ns);
+    if (t1 <= t0) continue;
+    const Eigen::Vector3d w = 0.5 * (a.gyro_rad_s + b.gyro_rad_s);
+    const Eigen::Vector3d phi = w * ns_to_s(t1 - t0);
+    const double angle = phi.norm();
+    if (angle > 1e-12) q_prev_cur = q_prev_cur * Eigen::Quaterniond(Eigen::AngleAxisd(angle, phi / angle));
+    ++used;
+  }
+  if (used == 0) return prior;
+  // Into the rectified left camera: R_prev_cur(cam) = R_cam_imu R_prev_cur(imu) R_imu_cam.
+  const Eigen::Quaterniond q_rect_imu(T_rect_imu_.linear());
+  prior.q_prev_cur = (q_rect_imu * q_prev_cur * q_rect_imu.conjugate()).normalized();
+  prior.valid = true;
+  return prior;
+}
+
+dsp::TrackResult TrackingSystem::on_stereo(const StereoFrame& frame) {
+  // Corrections from the mapping thread first: the pose then starts from the adjusted map.
+  if (options_.mapping_thread) {
+    while (dsp::MapCorrection* c = corrections_.front()) {
+      tracker_.apply(*c);
+      corrections_.pop();
+      ++counters_.corrections_applied;
+    }
+  }
+  const dsp::RotationPrior prior = gyro_prior(frame.t_ns);
+  const dsp::TrackResult result =
+      tracker_.track(frame.t_ns, frame.left.image, frame.right.image, prior);
+  last_frame_t_ns_ = frame.t_ns;
+  ++counters_.frames;
+  if (result.state == dsp::TrackingState::kLost) ++counters_.lost_frames;
+  if (result.relocalised) ++counters_.relocalisations;
+  if (const dsp::KeyframeMessage* kf = tracker_.pending_keyframe()) {
+    ++counters_.keyframes;
+    if (options_.mapping_thread) {
+      if (dsp::KeyframeMessage* slot = keyframes_.producer_slot()) {
+        slot->copy_from(*kf);
+        keyframes_.push();
+      } else {
+        ++counters_.keyframes_dropped;  // the mapper is behind; tracking does not wait
+      }
+    } else {
+      map_keyframe(*kf, lockstep_correction_);
+      tracker_.apply(lockstep_correction_);
+      ++counters_.corrections_applied;
+      publish_map();
+    }
+  }
+  return result;
+}
+
+void TrackingSystem::map_keyframe(const dsp::KeyframeMessage& message, dsp::MapCorrection& out) {
+  const TimeNs t0 = monotonic_now_ns();
+  mapper_.add_keyframe(message);
+  const dsp::MapperStats stats = mapper_.local_adjust(out);
+  const TimeNs t1 = monotonic_now_ns();
+  local_adjustments_.fetch_add(1, std::memory_order_relaxed);
+  culled_.fetch_add(static_cast<std::uint64_t>(stats.culled), std::memory_order_relaxed);
+  const std::lock_guard<std::mutex> lock(map_mutex_);
+  mapping_times_.push_back(t1 - t0);
+}
+
+void TrackingSystem::publish_map() {
+  auto snapshot = std::make_shared<const dsp::MapSnapshot>(mapper_.snapshot());
+  const std::lock_guard<std::mutex> lock(map_mutex_);
+  map_ = std::move(snapshot);
+}
+
+void TrackingSystem::mapping_loop() {
+  int since_global = 0;
+  for (;;) {
+    if (dsp::KeyframeMessage* kf = keyframes_.front()) {
+      dsp::MapCorrection* out = nullptr;
+      while ((out = corrections_.producer_slot()) == nullptr && !stop_.load()) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));  // the tracker drains it
+      }
+      if (out == nullptr) break;
+      map_keyframe(*kf, *out);
+      keyframes_.pop();
+      corrections_.push();
+      publish_map();
+      ++since_global;
+      continue;
+    }
+    if (stop_.load()) break;
+    if (since_global >= kKeyframesPerGlobalAdjustment) {
+      if (dsp::MapCorrection* out = corrections_.producer_slot()) {
+        const dsp::MapperStats stats = mapper_.global_adjust(*out);
+        corrections_.push();
+        global_adjustments_.fetch_add(1, std::memory_order_relaxed);
+        culled_.fetch_add(static_cast<std::uint64_t>(stats.culled), std::memory_order_relaxed);
+        publish_map();
+        since_global = 0;
+        continue;
+      }
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+}
+
+std::shared_ptr<const dsp::MapSnapshot> TrackingSystem::finish() {
+  if (thread_.joinable()) {
+    // Let the mapper take what is queued, then stop it.
+    while (keyframes_.front() != nullptr) {
+      while (dsp::MapCorrection* c = corrections_.front()) {
+        tracker_.apply(*c);
+        corrections_.pop();
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    stop_.store(true);
+    thread_.join();
+    while (dsp::MapCorrection* c = corrections_.front()) {
+      tracker_.apply(*c);
+      corrections_.pop();
+    }
+  }
+  if (mapper_.keyframe_count() > 0) {
+    const dsp::MapperStats stats = mapper_.global_adjust(lockstep_correction_);
+    tracker_.apply(lockstep_correction_);
+    global_adjustments_.fetch_add(1, std::memory_order_relaxed);
+    culled_.fetch_add(static_cast<std::uint64_t>(stats.culled), std::memory_order_relaxed);
+  }
+  publish_map();
+  return latest_map();
+}
+
+std::shared_ptr<const dsp::MapSnapshot> TrackingSystem::latest_map() const {
+  const std::lock_guard<std::mutex> lock(map_mutex_);
+  return map_;
+}
+
+TrackingCounters TrackingSystem::counters() const {
+  TrackingCounters c = counters_;
+  c.local_adjustments = local_adjustments_.load();
+  c.global_adjustments = global_adjustments_.load();
+  c.culled_points = culled_.load();
+  return c;
+}
+
+std::vector<std::int64_t> TrackingSystem::mapping_times_ns() const {
+  const std::lock_guard<std::mutex> lock(map_mutex_);
+  return mapping_times_;
+}
+
+}  // namespace wallar::firmware

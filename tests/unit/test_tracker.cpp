@@ -1,0 +1,300 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file test_tracker.cpp
+/// @brief The stereo tracker and mapper: its parts (corners, row matching, Lucas-Kanade, pose),
+/// a rendered room flown through on a known path, the real EuRoC still sequence, and bad input.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <thread>
+#include <vector>
+
+#include "wallar/core/spsc_ring.hpp"
+#include "wallar/drivers/recording/euroc.hpp"
+#include "wallar/drivers/recording/jpeg.hpp"
+#include "wallar/dsp/eval/trajectory.hpp"
+#include "wallar/dsp/tracking/features.hpp"
+#include "wallar/dsp/tracking/klt.hpp"
+#include "wallar/dsp/tracking/mapper.hpp"
+#include "wallar/dsp/tracking/pose_estimation.hpp"
+#include "wallar/dsp/tracking/synthetic_room.hpp"
+#include "wallar/dsp/tracking/tracker.hpp"
+#include "wallar/dsp/walls/room.hpp"
+#include "wallar/dsp/walls/room_check.hpp"
+#include "wallar/firmware/tracking.hpp"
+
+namespace wallar {
+namespace {
+
+using dsp::SyntheticCamera;
+using dsp::SyntheticRoom;
+
+/// A room small enough that its walls are 2-3 m from the path (EuRoC-like rig).
+SyntheticRoom test_room() {
+  SyntheticRoom room;
+  room.x_min_m = -2.0;
+  room.x_max_m = 2.0;
+  room.y_min_m = -2.5;
+  room.y_max_m = 2.5;
+  room.z_max_m = 2.5;
+  return room;
+}
+
+RigCalibration synthetic_rig(const SyntheticCamera& c) {
+  RigCalibration rig;
+  for (int i = 0; i < 2; ++i) {
+    CameraCalibration& cam = rig.cams[static_cast<std::size_t>(i)];
+    cam.name = i == 0 ? "cam0" : "cam1";
+    cam.width_px = c.width_px;
+    cam.height_px = c.height_px;
+    cam.rate_hz = 20.0;
+    cam.fx = cam.fy = c.f_px;
+    cam.cx = c.cx_px;
+    cam.cy = c.cy_px;
+    cam.distortion = {0.0, 0.0, 0.0, 0.0};
+  }
+  rig.cams[1].T_body_cam.translation() = Eigen::Vector3d(c.baseline_m, 0.0, 0.0);
+  return rig;
+}
+
+Image render(const SyntheticRoom& room, const SyntheticCamera& c, const SE3d& T_world_cam,
+             int cam) {
+  Image img = Image::allocate(c.width_px, c.height_px, PixelFormat::kGray8);
+  dsp::render_room(room, c, T_world_cam, cam,
+                   std::span<std::uint8_t>(img.mutable_data(),
+                                           static_cast<std::size_t>(c.width_px * c.height_px)));
+  return img;
+}
+
+Image filled(int width, int height, std::uint8_t value) {
+  Image img = Image::allocate(width, height, PixelFormat::kGray8);
+  std::fill_n(img.mutable_data(), static_cast<std::size_t>(width * height), value);
+  return img;
+}
+
+dsp::GrayView view(const Image& img) {
+  return {img.data(), img.width(), img.height(), img.stride_bytes()};
+}
+
+
+
+// --- Parts -------------------------------------------------------------------------------------
+
+TEST(TrackerParts, CornersAreSpreadOverBucketsAndCapped) {
+  const SyntheticRoom room = test_room();
+  const SyntheticCamera cam;
+  const auto path = dsp::synthetic_trajectory(room, 1, 10.0);
+  const Image img = render(room, cam, path[0].T_world_body, 0);
+  dsp::DetectorParams params;
+  params.bucket_px = 48;
+  params.per_bucket = 3;
+  dsp::CornerDetector detector(cam.width_px, cam.height_px, params);
+  std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
+  occupancy[0] = 3;  // a bucket already full of tracks gets nothing new
+  dsp::FixedVector<dsp::Corner> corners(2000);
+  detector.detect(view(img), occupancy, corners);
+  std::vector<int> per_bucket(static_cast<std::size_t>(detector.bucket_count()), 0);
+  for (const dsp::Corner& c : corners) ++per_bucket[static_cast<std::size_t>(detector.bucket_of(c.u_px, c.v_px))];
+  EXPECT_EQ(per_bucket[0], 0);
+  EXPECT_LE(*std::max_element(per_bucket.begin(), per_bucket.end()), 3);
+  const auto filled_buckets = std::count_if(per_bucket.begin(), per_bucket.end(), [](int n) { return n > 0; });
+  EXPECT_GT(filled_buckets, detector.bucket_count() * 3 / 4);
+  for (const dsp::Corner& c : corners) EXPECT_GE(c.shi_tomasi, params.min_shi_tomasi);
+}
+
+TEST(TrackerParts, TheThresholdAdaptsToABlankImage) {
+  const Image blank = filled(320, 240, 128);
+  dsp::CornerDetector detector(320, 240, dsp::DetectorParams{});
+  std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
+  dsp::FixedVector<dsp::Corner> corners(100);
+  const int before = detector.threshold();
+  for (int i = 0; i < 10; ++i) detector.detect(view(blank), occupancy, corners);
+  EXPECT_TRUE(corners.empty());
+  EXPECT_LT(detector.threshold(), before);
+  EXPECT_EQ(detector.threshold(), dsp::DetectorParams{}.threshold_min);
+}
+
+TEST(TrackerParts, RowMatchingRecoversTheRenderedDisparity) {
+  const SyntheticRoom room = test_room();
+  const SyntheticCamera cam;
+  const SE3d T = dsp::synthetic_trajectory(room, 1, 10.0)[0].T_world_body;
+  const Image left = render(room, cam, T, 0), right = render(room, cam, T, 1);
+  dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
+  std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
+  dsp::FixedVector<dsp::Corner> corners(500);
+  detector.detect(view(left), occupancy, corners);
+  int matched = 0, close = 0;
+  for (const dsp::Corner& c : corners) {
+    const auto d = dsp::match_along_row(view(left), view(right), c.u_px, c.v_px, 2, 120, {});
+    if (!d) continue;
+    ++matched;
+    // Truth: the depth along the pixel's ray.
+    const Eigen::Vector3d ray((c.u_px - cam.cx_px) / cam.f_px, (c.v_px - cam.cy_px) / cam.f_px, 1.0);
+    const auto hit = dsp::ray_hit(room, T.translation(), T.linear() * ray);
+    ASSERT_TRUE(hit.has_value());
+    const double truth = cam.f_px * cam.baseline_m / hit->range;
+    close += std::abs(*d - truth) < 0.5 ? 1 : 0;
+  }
+  EXPECT_GT(matched, static_cast<int>(corners.size()) / 2);
+  EXPECT_GT(close, matched * 9 / 10);  // corners sit where depth may jump: most, not all
+}
+
+TEST(TrackerParts, LucasKanadeFollowsAKnownShift) {
+  const SyntheticRoom room = test_room();
+  const SyntheticCamera cam;
+  const SE3d T0 = dsp::synthetic_trajectory(room, 1, 10.0)[0].T_world_body;
+  // The right image is the left seen 0.11 m to the right: a pure horizontal disparity.
+  const Image left = render(room, cam, T0, 0), right = render(room, cam, T0, 1);
+  dsp::Pyramid prev(cam.width_px, cam.height_px, 3), cur(cam.width_px, cam.height_px, 3);
+  prev.build(view(left));
+  cur.build(view(right));
+  // Lucas-Kanade is meant for corners: track the detector's.
+  dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
+  std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
+  dsp::FixedVector<dsp::Corner> corners(300);
+  detector.detect(view(left), occupancy, corners);
+  int ok = 0, good = 0;
+  for (const dsp::Corner& c : corners) {
+    float u = c.u_px, v = c.v_px;  // no guess: a 15-40 px shift for the pyramid to find
+    if (!dsp::klt_track(prev, cur, c.u_px, c.v_px, u, v)) continue;
+    ++ok;
+    const Eigen::Vector3d ray((c.u_px - cam.cx_px) / cam.f_px, (c.v_px - cam.cy_px) / cam.f_px, 1.0);
+    const auto hit = dsp::ray_hit(room, T0.translation(), T0.linear() * ray);
+    const double d = cam.f_px * cam.baseline_m / hit->range;
+    good += std::abs((c.u_px - u) - d) < 0.3 && std::abs(v - c.v_px) < 0.3 ? 1 : 0;
+  }
+  // Translation-only windows on slanted walls seen from 11 cm apart: most, not all.
+  EXPECT_GT(ok, static_cast<int>(corners.size()) * 2 / 3);
+  EXPECT_GT(good, ok * 4 / 5);
+}
+
+TEST(TrackerParts, PoseFromStereoObservationsWithOutliers) {
+  const dsp::StereoIntrinsics K{450.0, 376.0, 240.0, 0.11};
+  SE3d T = SE3d::Identity();
+  T.linear() = Eigen::AngleAxisd(0.2, Eigen::Vector3d(0.3, 1.0, 0.1).normalized()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(0.3, -0.1, 0.2);
+  std::vector<dsp::PoseObservation> obs;
+  std::uint64_t s = 12345;
+  const auto uniform = [&s] {
+    s = s * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<double>(s >> 11) * (1.0 / 9007199254740992.0);
+  };
+  for (int i = 0; i < 200; ++i) {
+    const Eigen::Vector3d p_cam((uniform() - 0.5) * 4.0, (uniform() - 0.5) * 3.0, 1.0 + 5.0 * uniform());
+    dsp::PoseObservation o;
+    o.p_world = T.inverse() * p_cam;
+    const Eigen::Vector3d uvr = K.project(p_cam);
+    const bool outlier = i % 3 == 0;  // a third are wrong by 5-40 px
+    const double e = outlier ? 5.0 + 35.0 * uniform() : 0.3 * (uniform() - 0.5);
+    o.u_px = static_cast<float>(uvr.x() + e);
+    o.v_px = static_cast<float>(uvr.y() - e);
+    o.u_right_px = i % 5 == 1 ? NAN : static_cast<float>(uvr.z() + e);
+    obs.push_back(o);
+  }
+  std::vector<std::uint8_t> inlier(obs.size());
+  // A prior far off (30 cm, 10 deg): RANSAC must find the pose.
+  SE3d prior = T;
+  prior.translation() += Eigen::Vector3d(0.3, 0.0, 0.0);
+  prior.linear() = prior.linear() * Eigen::AngleAxisd(0.17, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  const dsp::PoseResult r = dsp::estimate_pose(K, obs, prior, inlier, 7);
+  ASSERT_TRUE(r.ok);
+  EXPECT_TRUE(r.from_ransac);
+  EXPECT_LT((r.T_cam_world.translation() - T.translation()).norm(), 0.01);
+  EXPECT_LT(Eigen::AngleAxisd(r.T_cam_world.linear() * T.linear().transpose()).angle(), 0.002);
+  int wrong = 0;
+  for (std::size_t i = 0; i < obs.size(); ++i) wrong += (inlier[i] != 0) == (i % 3 == 0) ? 1 : 0;
+  EXPECT_LE(wrong, 4);
+}
+
+TEST(TrackerParts, SpscRingPassesEverySlotInOrderBetweenTwoThreads) {
+  SpscRing<std::vector<int>> ring(8, [] { return std::vector<int>(16, 0); });
+  constexpr int kMessages = 20000;
+  std::thread producer([&] {
+    for (int i = 0; i < kMessages; ++i) {
+      std::vector<int>* slot = nullptr;
+      while ((slot = ring.producer_slot()) == nullptr) std::this_thread::yield();
+      for (int& v : *slot) v = i;  // the slot is written in place, never reallocated
+      ring.push();
+    }
+  });
+  int expected = 0;
+  bool in_order = true;
+  while (expected < kMessages) {
+    std::vector<int>* slot = ring.front();
+    if (slot == nullptr) {
+      std::this_thread::yield();
+      continue;
+    }
+    for (int v : *slot) in_order = in_order && v == expected;
+    ring.pop();
+    ++expected;
+  }
+  producer.join();
+  EXPECT_TRUE(in_order);
+  EXPECT_EQ(ring.size_approx(), 0u);
+}
+
+// --- A rendered room on a known path ------------------------------------------------------------
+
+struct SyntheticRun {
+  std::vector<StampedPose> truth, estimate;  // T_world_cam, both in the room's frame
+  std::shared_ptr<const dsp::MapSnapshot> map;
+  int lost = 0;
+};
+
+SyntheticRun fly_through_room(int frames, double rate_hz) {
+  const SyntheticRoom room = test_room();
+  const SyntheticCamera cam;
+  firmware::TrackingOptions options;
+  options.mapping_thread = false;  // lock step: repeatable
+  options.use_gyro = false;
+  firmware::TrackingSystem system(synthetic_rig(cam), options);
+  SyntheticRun run;
+  run.truth = dsp::synthetic_trajectory(room, frames, rate_hz);
+  const SE3d T_world0 = run.truth.front().T_world_body;  // the tracker's world: the first camera
+  for (const StampedPose& p : run.truth) {
+    StereoFrame f;
+    f.t_ns = p.t_ns;
+    f.left.image = render(room, cam, p.T_world_body, 0);
+    f.right.image = render(room, cam, p.T_world_body, 1);
+    const dsp::TrackResult r = system.on_stereo(f);
+    run.lost += r.state == dsp::TrackingState::kTracking ? 0 : 1;
+    run.estimate.push_back(StampedPose{p.t_ns, T_world0 * r.T_world_cam});
+  }
+  run.map = system.finish();
+  // Poses after the last global adjustment are not re-reported; the map is (in the same frame).
+  return run;
+}
+
+TEST(TrackerSynthetic, FollowsAKnownPathThroughARenderedRoom) {
+  const SyntheticRun run = fly_through_room(50, 5.0);  // 10 s, half of the loop
+  EXPECT_EQ(run.lost, 0);
+  dsp::TrajectoryEvalOptions eo;
+  eo.max_dt_ns = 1'000'000;
+  const dsp::TrajectoryErrors e = dsp::evaluate_trajectory(run.estimate, run.truth, eo);
+  std::printf("synthetic: path %.3f m, ATE %.4f m (%.3f %%), max %.4f m, RPE %.4f m / %.3f deg\n",
+              e.path_length_m, e.ate_rmse_m, 100.0 * e.ate_rmse_m / e.path_length_m, e.ate_max_m,
+              e.rpe_trans_rmse_m, e.rpe_rot_rmse_deg);
+  EXPECT_GT(e.path_length_m, 1.5);
+  EXPECT_LT(e.ate_rmse_m, 0.01 * e.path_length_m);
+  ASSERT_TRUE(run.map != nullptr);
+  // The map's points lie on the room's surfaces.
+  const SyntheticRoom room = test_room();
+  const SE3d T_world0 = run.truth.front().T_world_body;
+  std::vector<double> distance;
+  for (std::size_t i = 0; i < run.map->points.size(); ++i) {
+    distance.push_back(room.distance_to_nearest_surface(T_world0 * run.map->points.point(i).cast<double>()));
+  }
+  ASSERT_GT(distance.size(), 500u);
+  std::sort(distance.begin(), distance.end());
+  const double median = distance[distance.size() / 2];
+  const double p90 = distance[distance.size() * 9 / 10];
+  std::printf("synthetic map: %zu points, distance to the true surfaces: median %.4f m, 90%% %.4f m\n",
+              distance.size(), median, p90);
+  EXPECT_LT(median, 0.01);
+  EXPECT_LT(p90, 0.03);
+}
+
+}  // namespace
+}  // namespace wallar
