@@ -86,8 +86,12 @@ dsp::TrackResult TrackingSystem::on_stereo(const StereoFrame& frame) {
   const dsp::RotationPrior prior = gyro_prior(frame.t_ns);
   const dsp::TrackResult result =
       tracker_.track(frame.t_ns, frame.left.image, frame.right.image, prior);
-  last_frame_t_ns_ = frame.t_ns;
   ++counters_.frames;
+  if (result.rejected != nullptr) {
+    ++counters_.rejected_frames;
+    return result;
+  }
+  last_frame_t_ns_ = frame.t_ns;
   if (result.state == dsp::TrackingState::kLost) ++counters_.lost_frames;
   if (result.relocalised) ++counters_.relocalisations;
   if (const dsp::KeyframeMessage* kf = tracker_.pending_keyframe()) {

@@ -3,7 +3,8 @@
 /// @brief Counts heap allocations on the fixed-rate paths: after setup, a wall detection
 /// allocates nothing, nor does an attitude-filter update, nor do the BNO055 UART and ICM-20948
 /// drivers' step() in RUN, nor does stereo capture (poll, DQBUF, pairing, mailbox, re-queue,
-/// a stream restart) after start(). Its own executable: it replaces the global operator new.
+/// a stream restart) after start(), nor does the tracker over 100 frames (key-frames and map
+/// corrections included). Its own executable: it replaces the global operator new.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -17,6 +18,9 @@
 #include "wallar/core/mailbox.hpp"
 #include "wallar/drivers/camera/stereo_capture.hpp"
 #include "wallar/dsp/imu/attitude_filter.hpp"
+#include "wallar/dsp/tracking/mapper.hpp"
+#include "wallar/dsp/tracking/synthetic_room.hpp"
+#include "wallar/dsp/tracking/tracker.hpp"
 #include "wallar/dsp/walls/synthetic.hpp"
 #include "wallar/dsp/walls/wall_detector.hpp"
 
@@ -231,3 +235,71 @@ TEST(Allocations, StereoCaptureAllocatesNothingAfterStart) {
 
 }  // namespace
 }  // namespace wallar::test
+
+namespace {
+wallar::Image render_eye(const wallar::dsp::SyntheticRoom& room,
+                         const wallar::dsp::SyntheticCamera& cam, const wallar::SE3d& T, int eye) {
+  wallar::Image img =
+      wallar::Image::allocate(cam.width_px, cam.height_px, wallar::PixelFormat::kGray8);
+  wallar::dsp::render_room(
+      room, cam, T, eye,
+      std::span<std::uint8_t>(img.mutable_data(),
+                              static_cast<std::size_t>(cam.width_px * cam.height_px)));
+  return img;
+}
+}  // namespace
+
+TEST(Allocations, TrackerTracksAHundredFramesWithoutAllocating) {
+  using namespace wallar;
+  dsp::SyntheticRoom room;
+  room.x_min_m = -2.0;
+  room.x_max_m = 2.0;
+  room.y_min_m = -2.5;
+  room.y_max_m = 2.5;
+  room.z_max_m = 2.5;
+  const dsp::SyntheticCamera cam;
+  RigCalibration rig;
+  for (CameraCalibration& c : rig.cams) {
+    c.width_px = cam.width_px;
+    c.height_px = cam.height_px;
+    c.fx = c.fy = cam.f_px;
+    c.cx = cam.cx_px;
+    c.cy = cam.cy_px;
+    c.distortion = {0.0, 0.0, 0.0, 0.0};
+  }
+  rig.cams[1].T_body_cam.translation() = Eigen::Vector3d(cam.baseline_m, 0.0, 0.0);
+  // 25 poses of a moving path, played forth and back: key-frames, re-finding and corrections.
+  const std::vector<StampedPose> path = dsp::synthetic_trajectory(room, 25, 5.0);
+  std::vector<std::array<Image, 2>> pairs;
+  for (const StampedPose& p : path) {
+    pairs.push_back({render_eye(room, cam, p.T_world_body, 0), render_eye(room, cam, p.T_world_body, 1)});
+  }
+  dsp::Tracker tracker(rig, dsp::TrackerConfig{});
+  dsp::Mapper mapper(tracker.intrinsics());
+  dsp::MapCorrection correction(20000, 256);
+  std::size_t allocations = 0, keyframes = 0;
+  int tracking = 0;
+  for (int k = 0; k < 100; ++k) {
+    const int cycle = k % 48;  // 0..24 then 23..1
+    const std::size_t i = static_cast<std::size_t>(cycle < 25 ? cycle : 48 - cycle);
+    const TimeNs t_ns = static_cast<TimeNs>(k) * 200'000'000;
+    dsp::TrackResult r;
+    {
+      AllocationCounter counter;
+      r = tracker.track(t_ns, pairs[i][0], pairs[i][1]);
+      allocations += counter.count();
+    }
+    tracking += r.state == dsp::TrackingState::kTracking ? 1 : 0;
+    if (const dsp::KeyframeMessage* kf = tracker.pending_keyframe()) {
+      ++keyframes;
+      mapper.add_keyframe(*kf);  // the mapping thread's work: it may allocate
+      mapper.local_adjust(correction);
+      AllocationCounter counter;
+      tracker.apply(correction);
+      allocations += counter.count();
+    }
+  }
+  EXPECT_EQ(tracking, 100);
+  EXPECT_GE(keyframes, 3u);  // the path is long enough for the map to grow
+  EXPECT_EQ(allocations, 0u);
+}

@@ -10,6 +10,7 @@
 #include <thread>
 #include <vector>
 
+#include "wallar/core/error.hpp"
 #include "wallar/core/spsc_ring.hpp"
 #include "wallar/drivers/recording/euroc.hpp"
 #include "wallar/drivers/recording/jpeg.hpp"
@@ -22,6 +23,7 @@
 #include "wallar/dsp/tracking/tracker.hpp"
 #include "wallar/dsp/walls/room.hpp"
 #include "wallar/dsp/walls/room_check.hpp"
+#include "wallar/firmware/track_recording.hpp"
 #include "wallar/firmware/tracking.hpp"
 
 namespace wallar {
@@ -294,6 +296,141 @@ TEST(TrackerSynthetic, FollowsAKnownPathThroughARenderedRoom) {
               distance.size(), median, p90);
   EXPECT_LT(median, 0.01);
   EXPECT_LT(p90, 0.03);
+}
+
+
+// --- The real EuRoC still sequence ---------------------------------------------------------------
+
+const recording::EurocRecording& euroc_still() {
+  static const recording::EurocRecording rec =
+      recording::read_euroc(std::string(WALLAR_TEST_DATA) + "/euroc_v1_01_still");
+  return rec;
+}
+
+StereoFrame euroc_pair(std::size_t i) {
+  const recording::EurocRecording& rec = euroc_still();
+  StereoFrame f;
+  f.t_ns = rec.cams[0].frames[i].t_ns;
+  f.sequence = i;
+  f.left.image = recording::load_image_gray(rec.cams[0].image_path(rec.cams[0].frames[i]));
+  f.right.image = recording::load_image_gray(rec.cams[1].image_path(rec.cams[1].frames[i]));
+  return f;
+}
+
+TEST(TrackerEuroc, StillSequenceDriftsLittleAndItsMapHoldsTheFloor) {
+  for (const bool thread : {false, true}) {
+    firmware::TrackRecordingOptions options;
+    options.tracking.mapping_thread = thread;
+    options.gravity_aligned = true;
+    options.evaluate = true;
+    const std::atomic<bool> stop{false};
+    const firmware::TrackRecordingResult r = firmware::track_recording(euroc_still(), options, stop);
+    SCOPED_TRACE(thread ? "mapping thread" : "lock step");
+    ASSERT_EQ(r.frames.size(), 40u);
+    for (const dsp::TrackResult& f : r.frames) EXPECT_EQ(f.state, dsp::TrackingState::kTracking);
+    ASSERT_TRUE(r.drift_m && r.drift_deg);
+    std::printf("EuRoC still (%s): drift %.4f m %.3f deg\n", thread ? "thread" : "lockstep",
+                *r.drift_m, *r.drift_deg);
+    EXPECT_LT(*r.drift_m, 0.01);
+    EXPECT_LT(*r.drift_deg, 0.5);
+    ASSERT_TRUE(r.floor.has_value());
+    ASSERT_TRUE(r.floor->free_fit_vs_ground_truth_deg.has_value());
+    std::printf("  floor: %zu points, free fit %.2f deg from ground-truth gravity\n",
+                r.floor->inliers, *r.floor->free_fit_vs_ground_truth_deg);
+    EXPECT_GT(r.floor->inliers, 50u);
+    EXPECT_LT(*r.floor->free_fit_vs_ground_truth_deg, 2.0);
+    EXPECT_NEAR(r.floor->distance_below_m, 0.93, 0.1);  // the IMU sits ~0.93 m above the floor
+    // The map is in the gravity-aligned body world: the floor points are below, not beside.
+    EXPECT_GT(r.map.size(), 150u);
+  }
+}
+
+TEST(TrackerEuroc, OnePairMakesAMap) {
+  firmware::TrackingOptions options;
+  options.mapping_thread = false;
+  firmware::TrackingSystem system(euroc_still().rig(), options);
+  const dsp::TrackResult r = system.on_stereo(euroc_pair(0));
+  EXPECT_EQ(r.state, dsp::TrackingState::kTracking);
+  EXPECT_TRUE(r.keyframe);
+  const auto map = system.finish();
+  ASSERT_TRUE(map != nullptr);
+  EXPECT_GT(map->points.size(), 150u);
+  EXPECT_EQ(map->keyframe_centres.size(), 1u);
+  ASSERT_EQ(map->viewer_offset.size(), map->points.size() + 1);
+  EXPECT_EQ(map->viewer_index.size(), map->points.size());  // one pair: one viewer each
+}
+
+// --- Bad input: blank and dark frames, repeats and gaps, wrong sizes -----------------------------
+
+TEST(TrackerBadInput, BlankStartDarkMiddleRepeatsAndGapsWrongSizes) {
+  firmware::TrackingOptions options;
+  options.mapping_thread = false;
+  firmware::TrackingSystem system(euroc_still().rig(), options);
+  const auto pose_ok = [](const dsp::TrackResult& r) {
+    return r.T_world_cam.matrix().allFinite() && r.T_world_cam.translation().norm() < 0.01;
+  };
+  const StereoFrame first = euroc_pair(0);
+  // A blank wall: nothing to start a map from; the tracker says so and waits.
+  for (int i = 0; i < 3; ++i) {
+    StereoFrame blank = first;
+    blank.left.image = filled(752, 480, 128);
+    blank.right.image = filled(752, 480, 128);
+    const dsp::TrackResult r = system.on_stereo(blank);
+    EXPECT_EQ(r.state, dsp::TrackingState::kInitialising);
+    EXPECT_TRUE(pose_ok(r));
+  }
+  // Real frames, with a repeated frame and a gap.
+  for (std::size_t i : {0, 1, 1, 1, 5, 9, 10, 10}) {
+    const dsp::TrackResult r = system.on_stereo(euroc_pair(i));
+    EXPECT_EQ(r.state, dsp::TrackingState::kTracking) << "frame " << i;
+    EXPECT_TRUE(pose_ok(r)) << "frame " << i;
+  }
+  // The lights go out: lost, the pose held (never NaN).
+  for (int i = 0; i < 3; ++i) {
+    StereoFrame dark = euroc_pair(11);
+    dark.left.image = filled(752, 480, 0);
+    dark.right.image = filled(752, 480, 0);
+    const dsp::TrackResult r = system.on_stereo(dark);
+    EXPECT_EQ(r.state, dsp::TrackingState::kLost);
+    EXPECT_TRUE(pose_ok(r));
+  }
+  // A frame of the wrong size is refused and changes nothing.
+  StereoFrame small = euroc_pair(12);
+  small.left.image = filled(640, 480, 100);
+  small.right.image = filled(640, 480, 100);
+  const dsp::TrackResult refused = system.on_stereo(small);
+  ASSERT_NE(refused.rejected, nullptr);
+  EXPECT_EQ(refused.state, dsp::TrackingState::kLost);
+  // Light again: relocalised against the key-frame, back to tracking where it was.
+  const dsp::TrackResult back = system.on_stereo(euroc_pair(13));
+  EXPECT_EQ(back.state, dsp::TrackingState::kTracking);
+  EXPECT_TRUE(back.relocalised);
+  EXPECT_TRUE(pose_ok(back));
+  for (std::size_t i = 14; i < 20; ++i) {
+    EXPECT_EQ(system.on_stereo(euroc_pair(i)).state, dsp::TrackingState::kTracking);
+  }
+  const firmware::TrackingCounters c = system.counters();
+  EXPECT_EQ(c.lost_frames, 3u);
+  EXPECT_EQ(c.rejected_frames, 1u);
+  EXPECT_EQ(c.relocalisations, 1u);
+}
+
+TEST(TrackerBadInput, ACalibrationThatDoesNotFitTheImagesIsAClearError) {
+  recording::EurocRecording rec = euroc_still();
+  for (auto& cam : rec.cams) {
+    cam.calib.width_px = 640;  // the images are 752 wide
+    cam.frames.resize(3);
+  }
+  firmware::TrackRecordingOptions options;
+  const std::atomic<bool> stop{false};
+  try {
+    (void)firmware::track_recording(rec, options, stop);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    // The replay checks each image against the calibration and names the file.
+    EXPECT_NE(std::string(e.what()).find("image is 752x480, expected 640x480"), std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace

@@ -107,6 +107,7 @@ struct Tracker::Impl {
   }
 
   void make_thumbnail(const GrayView& img, std::vector<float>& out) const;
+  const char* check(const Image& left, const Image& right) const;
   void rectify(const Image& left, const Image& right);
   bool project(const SE3d& T, const Eigen::Vector3d& p_world, double margin, Eigen::Vector3d& uvr,
                double& depth) const;
@@ -225,16 +226,20 @@ void Tracker::Impl::make_thumbnail(const GrayView& img, std::vector<float>& out)
   for (float& v : out) v -= static_cast<float>(mean);
 }
 
+const char* Tracker::Impl::check(const Image& left, const Image& right) const {
+  for (const Image* im : {&left, &right}) {
+    if (im->empty() || im->format() != PixelFormat::kGray8) return "not an 8-bit gray image";
+    if (im->width() != width || im->height() != height) {
+      return "the image size differs from the calibration's";
+    }
+  }
+  return nullptr;
+}
+
 void Tracker::Impl::rectify(const Image& left, const Image& right) {
   const std::array<const Image*, 2> in{&left, &right};
   for (std::size_t i = 0; i < 2; ++i) {
     const Image& im = *in[i];
-    if (im.empty() || im.format() != PixelFormat::kGray8) {
-      throw std::invalid_argument("tracker: expected 8-bit gray images");
-    }
-    if (im.width() != width || im.height() != height) {
-      throw std::invalid_argument("tracker: the image size does not match the calibration's");
-    }
     remap[i].apply(GrayView{im.data(), im.width(), im.height(), im.stride_bytes()},
                    rect[i].data());
   }
@@ -542,6 +547,13 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
   result.t_ns = t_ns;
   const std::int64_t t0 = m.now();
   m.message_pending = false;
+  result.rejected = m.check(left, right);
+  if (result.rejected != nullptr) {
+    result.frame = m.frame;
+    result.state = m.state;
+    result.T_world_cam = m.T_cw.inverse();
+    return result;
+  }
   m.rectify(left, right);
   const std::int64_t t1 = m.now();
   ++m.frame;

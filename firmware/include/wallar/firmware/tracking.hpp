@@ -40,7 +40,7 @@ struct TrackingOptions {
 
 struct TrackingCounters {
   std::uint64_t frames = 0, keyframes = 0, keyframes_dropped = 0, corrections_applied = 0;
-  std::uint64_t lost_frames = 0, relocalisations = 0, local_adjustments = 0,
+  std::uint64_t lost_frames = 0, rejected_frames = 0, relocalisations = 0, local_adjustments = 0,
                 global_adjustments = 0, culled_points = 0;
 };
 

@@ -152,6 +152,9 @@ struct TrackResult {
   int new_points = 0;
   bool keyframe = false;
   bool relocalised = false;
+  /// The frame was not used: not 8-bit gray, or not the calibration's size. The state and the
+  /// pose are the last frame's.
+  const char* rejected = nullptr;
   TrackerTimes times;
 };
 
@@ -171,7 +174,8 @@ class Tracker {
   Tracker(const Tracker&) = delete;
   Tracker& operator=(const Tracker&) = delete;
 
-  /// Tracks one stereo pair (8-bit gray, the calibration's size; otherwise std::invalid_argument).
+  /// Tracks one stereo pair. A pair that is not 8-bit gray of the calibration's size is not
+  /// used: the result says why (`rejected`) and keeps the last state and pose.
   TrackResult track(TimeNs t_ns, const Image& left, const Image& right,
                     const RotationPrior& gyro = {});
 
