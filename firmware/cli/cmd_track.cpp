@@ -20,6 +20,7 @@
 #include "wallar/drivers/recording/euroc.hpp"
 #include "wallar/drivers/recording/tum_trajectory.hpp"
 #include "wallar/eval/output.hpp"
+#include "wallar/firmware/board.hpp"
 #include "wallar/firmware/track_recording.hpp"
 
 namespace wallar::cli {
@@ -34,7 +35,7 @@ struct TrackArgs {
   bool lockstep = false;
   bool no_gyro = false;
   bool json = false;
-  int max_tracks = 300;
+  std::string board;
 };
 
 struct Percentiles {
@@ -62,9 +63,11 @@ nlohmann::json to_json(const Percentiles& p) {
 int run_track(const TrackArgs& a) {
   const recording::EurocRecording rec = recording::read_euroc(a.recording);
   firmware::TrackRecordingOptions options;
-  options.tracking.mapping_thread = !a.lockstep;
+  // Capacities from the board file when given (as the firmware sizes them at start-up).
+  options.tracking = firmware::tracking_options(
+      a.board.empty() ? firmware::TrackingConfig{} : firmware::load_board(a.board).tracking);
+  if (a.lockstep) options.tracking.mapping_thread = false;
   options.tracking.use_gyro = !a.no_gyro;
-  options.tracking.tracker.max_tracks = a.max_tracks;
   options.gravity_aligned = a.gravity_aligned;
   options.evaluate = a.eval;
   const firmware::TrackRecordingResult r =
@@ -97,7 +100,7 @@ int run_track(const TrackArgs& a) {
       {"local_adjustments", c.local_adjustments},
       {"global_adjustments", c.global_adjustments},
       {"culled_points", c.culled_points},
-      {"mapping", a.lockstep ? "lockstep" : "thread"},
+      {"mapping", options.tracking.mapping_thread ? "thread" : "lockstep"},
       {"final_state", dsp::to_string(r.frames.back().state)},
       {"frame_time", to_json(percentiles(total))},
       {"stage_time",
@@ -181,8 +184,8 @@ void add_track_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_flag("--lockstep", args->lockstep,
                 "map on the tracking thread after each key-frame (repeatable results)");
   cmd->add_flag("--no-gyro", args->no_gyro, "do not use the gyro to predict rotation");
-  cmd->add_option("--max-tracks", args->max_tracks, "features tracked per frame")
-      ->check(CLI::Range(8, 5000));
+  cmd->add_option("--board", args->board,
+                  "board file whose tracking: section sizes the tracker (default: built-in sizes)");
   cmd->add_flag("--json", args->json, "print the summary as JSON");
   cmd->callback([args, &run] { run = [args] { return run_track(*args); }; });
 }

@@ -14,6 +14,17 @@ constexpr int kKeyframesPerGlobalAdjustment = 5;
 constexpr std::size_t kMaxCorrectedKeyframes = 4096;
 }  // namespace
 
+TrackingOptions tracking_options(const TrackingConfig& board) {
+  TrackingOptions o;
+  o.tracker.max_tracks = board.max_tracks;
+  o.tracker.keyframe_points = board.keyframe_points;
+  o.tracker.max_map_points = board.max_map_points;
+  o.tracker.max_keyframes = board.max_keyframes;
+  o.tracker.pyramid_levels = board.pyramid_levels;
+  o.mapping_thread = board.mapping_thread;
+  return o;
+}
+
 TrackingSystem::TrackingSystem(const RigCalibration& rig, const TrackingOptions& options,
                                dsp::Tracker::Clock clock)
     : options_(options),

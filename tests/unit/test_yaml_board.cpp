@@ -6,6 +6,7 @@
 #include "test_support.hpp"
 #include "wallar/drivers/config/yaml.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/tracking.hpp"
 #include "wallar/firmware/live_stereo.hpp"
 
 namespace wallar::test {
@@ -58,6 +59,9 @@ TEST(Board, TheShippedBoardFilesLoad) {
   EXPECT_EQ(sim.source, firmware::BoardConfig::Source::kReplay);
   EXPECT_TRUE(fs::is_directory(sim.replay.recording / "mav0")) << sim.replay.recording;
   EXPECT_EQ(sim.display.backend, "headless");
+  EXPECT_EQ(sim.tracking.max_tracks, 300);
+  EXPECT_EQ(sim.tracking.max_map_points, 20000);
+  EXPECT_TRUE(sim.tracking.mapping_thread);
 
   const auto pi = firmware::load_board(fs::path(WALLAR_SOURCE_DIR) / "board" / "rpi5.yaml");
   EXPECT_EQ(pi.source, firmware::BoardConfig::Source::kLive);
@@ -144,6 +148,27 @@ TEST(Board, WrongTypesAndRangesAreNamed) {
   text = kLiveBoard;
   text.replace(text.find("source: live"), 12, "source: cloud");
   EXPECT_THAT(board_error(text), HasSubstr("b.yaml:3: 'source' must be one of replay, live"));
+}
+
+TEST(Board, TrackingCapacitiesAreReadAndChecked) {
+  std::string text = std::string(kLiveBoard) +
+                     "tracking:\n  max_tracks: 150\n  max_map_points: 5000\n  mapping_thread: false\n";
+  const auto b = parse_board(text, "b.yaml", ".");
+  EXPECT_EQ(b.tracking.max_tracks, 150);
+  EXPECT_EQ(b.tracking.max_map_points, 5000);
+  EXPECT_EQ(b.tracking.keyframe_points, 800);  // the default
+  EXPECT_FALSE(b.tracking.mapping_thread);
+  const firmware::TrackingOptions o = firmware::tracking_options(b.tracking);
+  EXPECT_EQ(o.tracker.max_tracks, 150);
+  EXPECT_FALSE(o.mapping_thread);
+
+  std::string small = text;
+  small.replace(small.find("max_map_points: 5000"), 20, "max_map_points: 500 ");
+  EXPECT_THAT(board_error(small),
+              HasSubstr("b.yaml:12: 'tracking' max_map_points must hold at least max_tracks"));
+  std::string typo = text;
+  typo.replace(typo.find("max_tracks"), 10, "max_track ");
+  EXPECT_THAT(board_error(typo), HasSubstr("b.yaml:12: unknown key 'tracking.max_track'"));
 }
 
 TEST(Board, RelativeRecordingPathsResolveAgainstTheBoardFile) {

@@ -76,7 +76,8 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
   const YamlNode& root = doc.root();
   if (!root.is_map()) root.fail("must be a map (a board file)");
   root.check_keys(
-      {"board", "source", "replay", "cameras", "imu", "display", "calibration", "input"});
+      {"board", "source", "replay", "cameras", "imu", "display", "tracking", "calibration",
+       "input"});
   BoardConfig b;
   b.file = name;
 
@@ -144,6 +145,23 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
     b.display.connector = d->get_string("connector", "");
     if (const YamlNode* w = d->find("width")) b.display.width_px = positive_int(*w, 16384);
     if (const YamlNode* h = d->find("height")) b.display.height_px = positive_int(*h, 16384);
+  }
+
+  if (const YamlNode* t = root.find("tracking")) {
+    t->check_keys({"max_tracks", "keyframe_points", "max_map_points", "max_keyframes",
+                   "pyramid_levels", "mapping_thread"});
+    TrackingConfig& tc = b.tracking;
+    if (const YamlNode* n = t->find("max_tracks")) tc.max_tracks = positive_int(*n, 5000);
+    if (const YamlNode* n = t->find("keyframe_points")) tc.keyframe_points = positive_int(*n, 20000);
+    if (const YamlNode* n = t->find("max_map_points")) tc.max_map_points = positive_int(*n, 10'000'000);
+    if (const YamlNode* n = t->find("max_keyframes")) tc.max_keyframes = positive_int(*n, 100'000);
+    if (const YamlNode* n = t->find("pyramid_levels")) tc.pyramid_levels = positive_int(*n, 6);
+    if (const YamlNode* n = t->find("mapping_thread")) tc.mapping_thread = n->as_bool();
+    if (tc.max_tracks < 8) t->at("max_tracks").fail("must be at least 8");
+    if (tc.max_map_points < tc.max_tracks + tc.keyframe_points) {
+      t->fail("max_map_points must hold at least max_tracks + keyframe_points");
+    }
+    if (tc.max_keyframes < 2) t->at("max_keyframes").fail("must be at least 2");
   }
 
   if (const YamlNode* c = root.find("calibration")) b.calibration = resolve(base_dir, *c);

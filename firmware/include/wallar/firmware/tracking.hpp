@@ -27,6 +27,7 @@
 #include "wallar/core/stereo_frame.hpp"
 #include "wallar/dsp/tracking/mapper.hpp"
 #include "wallar/dsp/tracking/tracker.hpp"
+#include "wallar/firmware/board.hpp"
 
 namespace wallar::firmware {
 
@@ -37,6 +38,9 @@ struct TrackingOptions {
   bool use_gyro = true;
   int imu_capacity = 4096;     //!< gyro samples kept between frames
 };
+
+/// The board file's tracking section as tracker and mapper settings.
+TrackingOptions tracking_options(const TrackingConfig& board);
 
 struct TrackingCounters {
   std::uint64_t frames = 0, keyframes = 0, keyframes_dropped = 0, corrections_applied = 0;

@@ -52,6 +52,16 @@ struct DisplayConfig {
   int height_px = 720;
 };
 
+/// The tracker's fixed-capacity storage, allocated once at start-up from these.
+struct TrackingConfig {
+  int max_tracks = 300;        //!< features tracked per frame
+  int keyframe_points = 800;   //!< new map points per key-frame
+  int max_map_points = 20000;
+  int max_keyframes = 128;     //!< key-frame records kept for relocalisation
+  int pyramid_levels = 3;
+  bool mapping_thread = true;  //!< false: map in lock step on the tracking thread
+};
+
 struct ReplayConfig {
   std::filesystem::path recording;  //!< EuRoC recording (absolute after loading)
   double rate = 1.0;                //!< 0 = as fast as possible
@@ -70,6 +80,7 @@ struct BoardConfig {
   std::optional<GpioLine> camera_trigger;
   ImuConfig imu;
   DisplayConfig display;
+  TrackingConfig tracking;
   std::optional<std::filesystem::path> calibration;  //!< EuRoC-style folder or Kalibr YAML
   std::optional<GpioLine> reset_button;
   std::optional<GpioLine> exit_button;
