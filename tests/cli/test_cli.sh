@@ -462,6 +462,38 @@ calibrate_imu_cam)
   run calibrate imu-cam "$tmp/nowhere"; expect_rc 2; one_err_line
   expect_err "no such recording folder"
   ;;
+track)
+  run track "$rec" --out "$tmp/traj.txt" --map "$tmp/map.ply" --eval --gravity-aligned --json
+  expect_rc 0
+  [ "$(json "d['frames']")" = 40 ] || fail "frames"
+  [ "$(json "d['tracking_frames']")" = 40 ] || fail "tracking frames"
+  python3 -c "import json,sys; d=json.load(open('$tmp/out')); sys.exit(0 if d['drift_m'] < 0.01 and d['drift_deg'] < 0.5 and d['floor']['free_fit_vs_ground_truth_gravity_deg'] < 2.0 else 1)" || fail "accuracy: $(cat "$tmp/out")"
+  # TUM: t x y z qx qy qz qw, one line per frame, the first pose the world's origin.
+  [ "$(grep -vc '^#' "$tmp/traj.txt")" = 40 ] || fail "trajectory lines"
+  awk '!/^#/ { if (NF != 8) exit 1 }' "$tmp/traj.txt" || fail "trajectory fields"
+  # The map reads back, with its observation counts, and holds the floor 0.93 m down.
+  run walls "$tmp/map.ply" --gravity 0,0,-1 --json -; expect_rc 0
+  python3 -c "import json,sys; d=json.load(open('$tmp/out')); f=[w for w in d['surfaces'] if w['kind']=='floor']; sys.exit(0 if f and abs(f[0]['d'] + 0.93) < 0.1 else 1)" || fail "floor in the map: $(cat "$tmp/out")"
+  # A recording of one stereo pair makes a map.
+  cp -r "$rec" "$tmp/one"
+  for c in cam0 cam1; do head -n 2 "$rec/mav0/$c/data.csv" >"$tmp/one/mav0/$c/data.csv"; done
+  run track "$tmp/one" --lockstep --map "$tmp/one.ply" --json; expect_rc 0
+  [ "$(json "d['frames']")" = 1 ] || fail "one pair: frames"
+  python3 -c "import json,sys; sys.exit(0 if json.load(open('$tmp/out'))['map_points'] > 100 else 1)" || fail "one pair: map"
+  ;;
+track_bad_input)
+  run track "$tmp/nowhere"; expect_rc 2; one_err_line
+  run track "$rec" --board "$tmp/none.yaml"; expect_rc 2; one_err_line
+  # --eval without ground truth.
+  cp -r "$rec" "$tmp/nogt"; rm -r "$tmp/nogt/mav0/state_groundtruth_estimate0"
+  run track "$tmp/nogt" --eval; expect_rc 2; one_err_line; expect_err "needs ground truth"
+  # A calibration for another image size: named, with the image and the sizes.
+  cp -r "$rec" "$tmp/size"
+  sed -i 's/^resolution: \[752, 480\]/resolution: [640, 480]/' "$tmp/size/mav0/cam0/sensor.yaml" "$tmp/size/mav0/cam1/sensor.yaml"
+  run track "$tmp/size" --out "$tmp/size.txt"; expect_rc 2; one_err_line
+  expect_err "expected 640x480"
+  [ ! -e "$tmp/size.txt" ] || fail "a trajectory was written for a failed run"
+  ;;
 *)
   fail "unknown case" ;;
 esac
