@@ -12,6 +12,7 @@
 ///    0.1 m of the scene's wall) and mean_rounds.
 ///  - `wallar bench imu`: imu/attitude_update{,_mag}: one dsp::AttitudeFilter::update() on a
 ///    200 Hz stream of a turning body (target: under 1 us).
+///  - `wallar bench track`: the tracker and mapper (bench_track.cpp).
 ///
 /// Google Benchmark flags pass through after `--`; `--json FILE` writes JSON to FILE.
 /// Builds without Google Benchmark (WALLAR_BUILD_BENCH=OFF: the asan, tsan and fuzz presets) keep
@@ -33,6 +34,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_cases.hpp"
 #include "commands.hpp"
 #include "wallar/dsp/imu/attitude_filter.hpp"
 #include "wallar/dsp/walls/plane_kernel.hpp"
@@ -45,6 +47,7 @@ namespace {
 struct BenchArgs {
   std::string json;
   std::vector<std::string> passthrough;
+  std::string recording = "tests/data/euroc_v1_01_still";
 };
 
 #if WALLAR_HAVE_BENCHMARK
@@ -296,10 +299,21 @@ int run_bench_walls(const BenchArgs& args) {
   return run_bench(args, "walls", register_wall_benchmarks);
 }
 int run_bench_imu(const BenchArgs& args) { return run_bench(args, "imu", register_imu_benchmarks); }
+int run_bench_track(const BenchArgs& args) {
+  set_track_bench_recording(args.recording);
+  return run_bench(args, "track", register_track_benchmarks);
+}
 
 #else  // !WALLAR_HAVE_BENCHMARK
 
 int run_bench_imu(const BenchArgs& /*args*/) {
+  std::fprintf(stderr,
+               "wallar: error: this build has no benchmarks (configured with "
+               "WALLAR_BUILD_BENCH=OFF)\n");
+  return kExitFailure;
+}
+
+int run_bench_track(const BenchArgs& /*args*/) {
   std::fprintf(stderr,
                "wallar: error: this build has no benchmarks (configured with "
                "WALLAR_BUILD_BENCH=OFF)\n");
@@ -342,6 +356,20 @@ void add_bench_command(CLI::App& app, std::function<int()>& run) {
   imu->add_option("benchmark_flags", args->passthrough,
                   "Google Benchmark flags, after --, e.g. -- --benchmark_min_time=2");
   imu->callback([args, &run] { run = [args] { return run_bench_imu(*args); }; });
+  CLI::App* track = bench->add_subcommand(
+      "track",
+      "Tracking per 752x480 stereo frame (with a per-stage breakdown) and mapping per key-frame");
+  track->add_option("--recording", args->recording,
+                    "EuRoC recording for the real-image case (default: the bundled still cut, "
+                    "relative to the current folder)");
+  track
+      ->add_option("--json", args->json,
+                   "Also write the results as JSON to FILE (--benchmark_out=FILE "
+                   "--benchmark_out_format=json)")
+      ->option_text("FILE");
+  track->add_option("benchmark_flags", args->passthrough,
+                    "Google Benchmark flags, after --, e.g. -- --benchmark_repetitions=5");
+  track->callback([args, &run] { run = [args] { return run_bench_track(*args); }; });
 }
 
 }  // namespace wallar::cli

@@ -70,26 +70,38 @@ std::int16_t segment_test(const GrayView& img, int x, int y, int t) {
   return static_cast<std::int16_t>(std::min(score, 32767));
 }
 
-/// Zero-mean SAD between a left patch (its mean removed) and the right patch at (xr, y).
-float zsad(const GrayView& left, int xl, const GrayView& right, int xr, int y, int hw) {
-  int sum_l = 0, sum_r = 0;
+constexpr int kMaxHalfWindow = 7;
+using Template = std::array<float, (2 * kMaxHalfWindow + 1) * (2 * kMaxHalfWindow + 1)>;
+
+/// The (2hw+1)^2 patch of `img` at (x, y), its mean removed.
+void load_template(const GrayView& img, int x, int y, int hw, Template& out) {
+  int sum = 0;
+  std::size_t k = 0;
   for (int dy = -hw; dy <= hw; ++dy) {
-    const std::uint8_t* rl = left.row(y + dy) + xl;
-    const std::uint8_t* rr = right.row(y + dy) + xr;
-    for (int dx = -hw; dx <= hw; ++dx) {
-      sum_l += rl[dx];
-      sum_r += rr[dx];
+    const std::uint8_t* r = img.row(y + dy) + x;
+    for (int dx = -hw; dx <= hw; ++dx, ++k) {
+      out[k] = static_cast<float>(r[dx]);
+      sum += r[dx];
     }
   }
-  const int n = (2 * hw + 1) * (2 * hw + 1);
-  const float offset = static_cast<float>(sum_l - sum_r) / static_cast<float>(n);
-  float cost = 0.0f;
+  const float mean = static_cast<float>(sum) / static_cast<float>(k);
+  for (std::size_t i = 0; i < k; ++i) out[i] -= mean;
+}
+
+/// Zero-mean SAD per pixel between a template (mean removed) and the patch of `img` at (x, y).
+float zsad(const Template& tmpl, const GrayView& img, int x, int y, int hw) {
+  int sum = 0;
   for (int dy = -hw; dy <= hw; ++dy) {
-    const std::uint8_t* rl = left.row(y + dy) + xl;
-    const std::uint8_t* rr = right.row(y + dy) + xr;
-    for (int dx = -hw; dx <= hw; ++dx) {
-      cost += std::abs(static_cast<float>(rl[dx]) - static_cast<float>(rr[dx]) - offset);
-    }
+    const std::uint8_t* r = img.row(y + dy) + x;
+    for (int dx = -hw; dx <= hw; ++dx) sum += r[dx];
+  }
+  const int n = (2 * hw + 1) * (2 * hw + 1);
+  const float mean = static_cast<float>(sum) / static_cast<float>(n);
+  float cost = 0.0f;
+  std::size_t k = 0;
+  for (int dy = -hw; dy <= hw; ++dy) {
+    const std::uint8_t* r = img.row(y + dy) + x;
+    for (int dx = -hw; dx <= hw; ++dx, ++k) cost += std::abs(tmpl[k] - (static_cast<float>(r[dx]) - mean));
   }
   return cost / static_cast<float>(n);
 }
@@ -215,7 +227,7 @@ float shi_tomasi_score(const GrayView& image, int x, int y, int half) {
 std::optional<float> match_along_row(const GrayView& left, const GrayView& right, float u_px,
                                      float v_px, int d_min, int d_max,
                                      const StereoMatchParams& params) {
-  const int hw = params.half_window;
+  const int hw = std::clamp(params.half_window, 1, kMaxHalfWindow);
   const int xl = static_cast<int>(std::lround(u_px));
   const int y = static_cast<int>(std::lround(v_px));
   if (y - hw - 1 < 0 || y + hw + 1 >= left.height || xl - hw < 0 || xl + hw >= left.width) {
@@ -225,9 +237,11 @@ std::optional<float> match_along_row(const GrayView& left, const GrayView& right
   d_max = std::min({d_max, xl - hw - 1, d_min + 511});
   if (d_max - d_min < 2) return std::nullopt;
   std::array<float, 512> cost{};
+  Template tmpl;
+  load_template(left, xl, y, hw, tmpl);
   int best = -1;
   for (int d = d_min; d <= d_max; ++d) {
-    const float c = zsad(left, xl, right, xl - d, y, hw);
+    const float c = zsad(tmpl, right, xl - d, y, hw);
     cost[static_cast<std::size_t>(d - d_min)] = c;
     if (best < 0 || c < cost[static_cast<std::size_t>(best - d_min)]) best = d;
   }
@@ -240,11 +254,12 @@ std::optional<float> match_along_row(const GrayView& left, const GrayView& right
   if (c0 > params.uniqueness * second) return std::nullopt;
   // Left-right check: the right patch, searched back along the left row, lands where we began.
   const int xr = xl - best;
+  load_template(right, xr, y, hw, tmpl);
   int back = -1;
   float back_cost = 0.0f;
   for (int d = d_min; d <= d_max; ++d) {
     if (xr + d + hw >= left.width) break;
-    const float c = zsad(right, xr, left, xr + d, y, hw);
+    const float c = zsad(tmpl, left, xr + d, y, hw);
     if (back < 0 || c < back_cost) {
       back = d;
       back_cost = c;

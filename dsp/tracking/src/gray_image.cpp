@@ -50,6 +50,9 @@ RemapTable::RemapTable(int width, int height, std::span<const float> map_x,
   if (map_x.size() != n || map_y.size() != n) {
     throw std::invalid_argument("remap table: the maps are not width x height");
   }
+  if (source_width > 32767 || source_height > 32767) {
+    throw std::invalid_argument("remap table: the source is larger than 32767 pixels");
+  }
   taps_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const float x = map_x[i], y = map_y[i];
@@ -58,11 +61,20 @@ RemapTable::RemapTable(int width, int height, std::span<const float> map_x,
       continue;
     }
     const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+    // Weights in 1/128 that sum to exactly 128 (the largest absorbs the rounding).
+    const float ax = x - static_cast<float>(x0), ay = y - static_cast<float>(y0);
+    const std::array<float, 4> wf{(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay};
     Tap& t = taps_[i];
     t.x = static_cast<std::int16_t>(x0);
     t.y = static_cast<std::int16_t>(y0);
-    t.wx = static_cast<std::uint8_t>(std::lround((x - static_cast<float>(x0)) * 128.0f));
-    t.wy = static_cast<std::uint8_t>(std::lround((y - static_cast<float>(y0)) * 128.0f));
+    int sum = 0;
+    std::size_t largest = 0;
+    for (std::size_t k = 0; k < 4; ++k) {
+      t.w[k] = static_cast<std::uint8_t>(std::lround(wf[k] * 128.0f));
+      sum += t.w[k];
+      if (wf[k] > wf[largest]) largest = k;
+    }
+    t.w[largest] = static_cast<std::uint8_t>(t.w[largest] + (128 - sum));
   }
 }
 
@@ -70,22 +82,18 @@ void RemapTable::apply(const GrayView& source, std::uint8_t* out) const {
   if (source.width != source_width_ || source.height != source_height_) {
     throw std::invalid_argument("remap: the image size does not match the calibration");
   }
-  for (int y = 0; y < height_; ++y) {
-    const Tap* taps = taps_.data() + std::ptrdiff_t{y} * width_;
-    std::uint8_t* dst = out + std::ptrdiff_t{y} * width_;
-    for (int x = 0; x < width_; ++x) {
-      const Tap t = taps[x];
-      if (t.x < 0) {
-        dst[x] = 0;
-        continue;
-      }
-      const std::uint8_t* r0 = source.row(t.y) + t.x;
-      const std::uint8_t* r1 = r0 + source.stride;
-      const int wx = t.wx, wy = t.wy;
-      const int top = r0[0] * (128 - wx) + r0[1] * wx;
-      const int bottom = r1[0] * (128 - wx) + r1[1] * wx;
-      dst[x] = static_cast<std::uint8_t>((top * (128 - wy) + bottom * wy + 8192) >> 14);
+  const std::uint8_t* src = source.data;
+  const std::ptrdiff_t stride = source.stride;
+  const std::size_t n = taps_.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Tap t = taps_[i];
+    if (t.x < 0) {
+      out[i] = 0;
+      continue;
     }
+    const std::uint8_t* p = src + t.y * stride + t.x;
+    out[i] = static_cast<std::uint8_t>(
+        (p[0] * t.w[0] + p[1] * t.w[1] + p[stride] * t.w[2] + p[stride + 1] * t.w[3] + 64) >> 7);
   }
 }
 

@@ -6,6 +6,7 @@
 /// Threading: none; one owner. Views do not own their pixels.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -85,9 +86,11 @@ class RemapTable {
   [[nodiscard]] int height() const { return height_; }
 
  private:
+  /// The top-left source tap (x = -1: outside the source) and the four bilinear weights in
+  /// 1/128 (top-left, top-right, bottom-left, bottom-right), summing to 128.
   struct Tap {
-    std::int16_t x = -1, y = 0;   //!< the top-left source tap; x = -1: outside the source
-    std::uint8_t wx = 0, wy = 0;  //!< weights of the right / lower taps, in 1/128
+    std::int16_t x = -1, y = 0;
+    std::array<std::uint8_t, 4> w{};
   };
   std::vector<Tap> taps_;
   int width_ = 0, height_ = 0, source_width_ = 0, source_height_ = 0;
