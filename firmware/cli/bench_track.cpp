@@ -9,11 +9,20 @@
 ///    counters: the mean of each stage per frame [ms] (rectify, pyramid, stage1, stage2,
 ///    keyframe) and tracks per frame;
 ///  - track/mapping/local_adjust: Mapper::add_keyframe + local_adjust of one key-frame of the
-///    synthetic flight (a 6-key-frame window), per key-frame.
+///    synthetic flight (a 6-key-frame window), per key-frame;
+///  - track/peer/opencv_frontend/{euroc_still,synthetic_moving}: the same per-frame work done
+///    with OpenCV, as a user would assemble it: cv::remap of both images, cv::goodFeaturesToTrack
+///    on the first frame, calcOpticalFlowPyrLK (11x11, 3 levels) of those corners frame to
+///    frame, and solvePnPRansac (EPnP) of their first-frame stereo points (the peer of
+///    stage 1; it has no stage 2, key-frames or relocalisation).
 ///
 /// Threading: one thread (the tracker's budget is one core).
 #if WALLAR_HAVE_BENCHMARK
 #include <benchmark/benchmark.h>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
 
 #include <array>
 #include <memory>
@@ -26,6 +35,7 @@
 #include "wallar/drivers/recording/jpeg.hpp"
 #include "wallar/dsp/tracking/mapper.hpp"
 #include "wallar/dsp/tracking/synthetic_room.hpp"
+#include "wallar/dsp/stereo/rectifier.hpp"
 #include "wallar/dsp/tracking/tracker.hpp"
 
 namespace wallar::cli {
@@ -154,6 +164,74 @@ void bm_local_adjust(benchmark::State& state, const Sequence& seq) {
       static_cast<double>(adjusted) / static_cast<double>(state.iterations());
 }
 
+/// OpenCV doing stage 1's work: remap both eyes, LK of 300 corners, PnP RANSAC (EPnP).
+void bm_opencv_frontend(benchmark::State& state, const Sequence& seq) {
+  const dsp::Rectifier rect(seq.rig);
+  std::array<cv::Mat, 2> map1, map2;
+  for (int cam = 0; cam < 2; ++cam) {
+    cv::initUndistortRectifyMap(rect.K(cam), rect.dist(cam), rect.R(cam), rect.P(cam), rect.size(),
+                                CV_16SC2, map1[static_cast<std::size_t>(cam)],
+                                map2[static_cast<std::size_t>(cam)]);
+  }
+  const auto rectify = [&](const std::array<Image, 2>& pair, std::array<cv::Mat, 2>& out) {
+    for (std::size_t cam = 0; cam < 2; ++cam) {
+      cv::remap(dsp::wrap_gray(pair[cam]), out[cam], map1[cam], map2[cam], cv::INTER_LINEAR);
+    }
+  };
+  // The first frame's corners and their stereo points (the "map").
+  std::array<cv::Mat, 2> first;
+  rectify(seq.pairs[seq.order[0]], first);
+  std::vector<cv::Point2f> corners;
+  cv::goodFeaturesToTrack(first[0], corners, 300, 0.01, 10.0);
+  std::vector<cv::Point2f> right_pts;
+  std::vector<unsigned char> status;
+  std::vector<float> error;
+  cv::calcOpticalFlowPyrLK(first[0], first[1], corners, right_pts, status, error);
+  std::vector<cv::Point3f> map;
+  std::vector<cv::Point2f> tracked;
+  const double fb = rect.f_px() * rect.baseline_m();
+  for (std::size_t i = 0; i < corners.size(); ++i) {
+    const double d = corners[i].x - right_pts[i].x;
+    if (status[i] == 0 || d < 1.0 || std::abs(corners[i].y - right_pts[i].y) > 1.0) continue;
+    const double z = fb / d;
+    map.emplace_back(static_cast<float>((corners[i].x - rect.cx()) * z / rect.f_px()),
+                     static_cast<float>((corners[i].y - rect.cy()) * z / rect.f_px()),
+                     static_cast<float>(z));
+    tracked.push_back(corners[i]);
+  }
+  const cv::Matx33d K(rect.f_px(), 0, rect.cx(), 0, rect.f_px(), rect.cy(), 0, 0, 1);
+  std::vector<cv::Mat> prev_pyr, cur_pyr;
+  cv::buildOpticalFlowPyramid(first[0], prev_pyr, cv::Size(11, 11), 2);
+  std::vector<cv::Point2f> prev = tracked, cur;
+  cv::Mat rvec, tvec;
+  std::size_t k = 1, inliers = 0;
+  std::array<cv::Mat, 2> rectified;
+  for (auto _ : state) {
+    rectify(seq.pairs[seq.order[k % seq.order.size()]], rectified);
+    ++k;
+    cv::buildOpticalFlowPyramid(rectified[0], cur_pyr, cv::Size(11, 11), 2);
+    cv::calcOpticalFlowPyrLK(prev_pyr, cur_pyr, prev, cur, status, error, cv::Size(11, 11), 2);
+    std::vector<cv::Point3f> obj;
+    std::vector<cv::Point2f> img;
+    for (std::size_t i = 0; i < cur.size(); ++i) {
+      if (status[i] == 0) continue;
+      obj.push_back(map[i]);
+      img.push_back(cur[i]);
+    }
+    std::vector<int> inl;
+    if (obj.size() >= 6) {
+      cv::solvePnPRansac(obj, img, K, cv::noArray(), rvec, tvec, false, 100, 2.0f, 0.99, inl,
+                         cv::SOLVEPNP_EPNP);
+    }
+    inliers += inl.size();
+    std::swap(prev_pyr, cur_pyr);
+    prev = cur;  // the points keep their map index (lost ones stay lost: status 0 later too)
+  }
+  state.counters["inliers"] =
+      static_cast<double>(inliers) / static_cast<double>(state.iterations());
+  state.counters["map_points"] = static_cast<double>(map.size());
+}
+
 std::string g_recording;
 
 }  // namespace
@@ -166,6 +244,12 @@ void register_track_benchmarks() {
       ->Unit(benchmark::kMillisecond);
   benchmark::RegisterBenchmark("track/frame/synthetic_moving",
                                [](benchmark::State& st) { bm_track(st, synthetic); })
+      ->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("track/peer/opencv_frontend/euroc_still",
+                               [](benchmark::State& st) { bm_opencv_frontend(st, euroc); })
+      ->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("track/peer/opencv_frontend/synthetic_moving",
+                               [](benchmark::State& st) { bm_opencv_frontend(st, synthetic); })
       ->Unit(benchmark::kMillisecond);
   benchmark::RegisterBenchmark("track/mapping/local_adjust",
                                [](benchmark::State& st) { bm_local_adjust(st, synthetic); })
