@@ -143,7 +143,8 @@ void bm_local_adjust(benchmark::State& state, const Sequence& seq) {
     const auto& pair = seq.pairs[seq.order[k]];
     (void)tracker.track(static_cast<TimeNs>(k) * 200'000'000, pair[0], pair[1]);
     if (const dsp::KeyframeMessage* kf = tracker.pending_keyframe()) {
-      auto copy = std::make_unique<dsp::KeyframeMessage>(kf->observations.capacity());
+      auto copy = std::make_unique<dsp::KeyframeMessage>(kf->observations.capacity(),
+                                                         kf->culled.capacity());
       copy->copy_from(*kf);
       keyframes.push_back(std::move(copy));
     }

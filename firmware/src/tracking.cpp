@@ -32,8 +32,10 @@ TrackingSystem::TrackingSystem(const RigCalibration& rig, const TrackingOptions&
       mapper_(tracker_.intrinsics(), options.mapper),
       keyframes_(kKeyframeSlots,
                  [&] {
-                   return dsp::KeyframeMessage(static_cast<std::size_t>(
-                       options.tracker.max_tracks + options.tracker.keyframe_points));
+                   return dsp::KeyframeMessage(
+                       static_cast<std::size_t>(options.tracker.max_tracks +
+                                                options.tracker.keyframe_points),
+                       static_cast<std::size_t>(options.tracker.max_map_points));
                  }),
       corrections_(kCorrectionSlots,
                    [&] {

@@ -237,6 +237,62 @@ TEST(TrackerParts, SpscRingPassesEverySlotInOrderBetweenTwoThreads) {
   EXPECT_EQ(ring.size_approx(), 0u);
 }
 
+TEST(TrackerMap, PointsHiddenBehindAnOccluderAreCulledAndTheMapperForgetsThem) {
+  // The camera holds still; from frame 1 on, a dark board hides the left 60 % of both images.
+  // The map points behind it are predicted in view frame after frame and never found; the
+  // last frame hides 85 %, so few tracks remain and a key-frame carries the news to the mapper.
+  const SyntheticRoom room = test_room();
+  const SyntheticCamera cam;
+  const SE3d T = dsp::synthetic_trajectory(room, 1, 10.0)[0].T_world_body;
+  const Image left = render(room, cam, T, 0), right = render(room, cam, T, 1);
+  const auto occluded = [&](const Image& src, int percent) {
+    Image out = Image::allocate(cam.width_px, cam.height_px, PixelFormat::kGray8);
+    std::copy_n(src.data(), static_cast<std::size_t>(cam.width_px * cam.height_px), out.mutable_data());
+    for (int y = 0; y < cam.height_px; ++y) {
+      std::fill_n(out.mutable_data() + std::ptrdiff_t{y} * cam.width_px, cam.width_px * percent / 100, 20);
+    }
+    return out;
+  };
+  dsp::TrackerConfig config;
+  config.max_tracks = 400;  // more than the visible part can hold: stage 2 keeps looking
+  dsp::Tracker tracker(synthetic_rig(cam), config);
+  dsp::Mapper mapper(tracker.intrinsics());
+  dsp::MapCorrection correction(20000, 256);
+  std::size_t culled_told = 0;
+  for (int k = 0; k <= 60; ++k) {
+    const int percent = k == 0 ? 0 : k < 60 ? 60 : 85;
+    const dsp::TrackResult r = tracker.track(k * 100'000'000LL, occluded(left, percent),
+                                             occluded(right, percent));
+    ASSERT_EQ(r.state, dsp::TrackingState::kTracking) << "frame " << k;
+    if (const dsp::KeyframeMessage* kf = tracker.pending_keyframe()) {
+      culled_told += kf->culled.size();
+      mapper.add_keyframe(*kf);
+      mapper.local_adjust(correction);
+      tracker.apply(correction);
+    }
+  }
+  // The points of the first key-frame behind the 60 % board (u < 0.55 width, safely inside).
+  std::size_t hidden_alive = 0, hidden_dead = 0;
+  for (const dsp::MapPoint& p : tracker.map_points()) {
+    if (p.keyframe != 0) continue;
+    const Eigen::Vector3d uvr = tracker.intrinsics().project(p.p_world);  // world = first camera
+    if (uvr.x() >= cam.width_px * 0.55) continue;
+    (p.alive ? hidden_alive : hidden_dead) += 1;
+  }
+  EXPECT_GT(hidden_dead, 100u);
+  EXPECT_LT(hidden_alive, hidden_dead / 10);
+  EXPECT_GE(culled_told, hidden_dead);  // the mapper heard of each one
+  const dsp::MapSnapshot map = mapper.snapshot();
+  std::size_t hidden_in_map = 0;
+  for (std::size_t i = 0; i < map.points.size(); ++i) {
+    hidden_in_map += tracker.intrinsics().project(map.points.point(i).cast<double>()).x() <
+                             cam.width_px * 0.55
+                         ? 1
+                         : 0;
+  }
+  EXPECT_LE(hidden_in_map, hidden_alive);
+}
+
 // --- A rendered room on a known path ------------------------------------------------------------
 
 struct SyntheticRun {

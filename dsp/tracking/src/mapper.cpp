@@ -60,6 +60,10 @@ void Mapper::add_keyframe(const KeyframeMessage& message) {
   record.id = message.id;
   record.t_ns = message.t_ns;
   record.T_world_cam = message.T_world_cam;
+  for (std::int32_t id : message.culled) {
+    const auto it = m.point_index.find(id);
+    if (it != m.point_index.end()) m.points[static_cast<std::size_t>(it->second)].alive = false;
+  }
   for (const NewMapPoint& p : message.new_points) {
     auto [it, fresh] = m.point_index.try_emplace(p.point, static_cast<std::int32_t>(m.points.size()));
     if (fresh) {

@@ -34,6 +34,8 @@ void KeyframeMessage::copy_from(const KeyframeMessage& other) {
   for (const KeyframeObservation& o : other.observations) observations.push_back(o);
   new_points.clear();
   for (const NewMapPoint& p : other.new_points) new_points.push_back(p);
+  culled.clear();
+  for (std::int32_t point : other.culled) culled.push_back(point);
 }
 
 namespace {
@@ -83,6 +85,8 @@ struct Tracker::Impl {
   FixedVector<std::int32_t> obs_point;
   FixedVector<std::uint8_t> inlier;
   FixedVector<std::int32_t> candidates;
+  FixedVector<std::int32_t> pending_culls;  // culled since the last key-frame's message
+  FixedVector<std::int32_t> attempted;      // stage 1's tracks this frame
 
   std::vector<KeyframeRecord> keyframes;  // ring of max_keyframes records
   std::int32_t next_keyframe = 0;
@@ -97,6 +101,7 @@ struct Tracker::Impl {
   SE3d T_cw_last = SE3d::Identity();  // the last frame's
   SE3d velocity = SE3d::Identity();   // T_cw = velocity * T_cw_last, constant velocity model
   std::int64_t frame = -1;
+  std::int64_t last_keyframe_frame = -1;
   std::uint32_t stage2_offset = 0;
 
   std::int64_t now() const { return clock != nullptr ? clock() : 0; }
@@ -121,6 +126,7 @@ struct Tracker::Impl {
   bool relocalise(TrackResult& result);
   bool need_keyframe() const;
   void make_keyframe(TimeNs t_ns, TrackResult& result);
+  void cull_points();
   void initialise(TimeNs t_ns, TrackResult& result);
 };
 
@@ -173,6 +179,8 @@ Tracker::Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock c
   m.obs_point = FixedVector<std::int32_t>(max_obs);
   m.inlier = FixedVector<std::uint8_t>(max_obs);
   m.candidates = FixedVector<std::int32_t>(max_points);
+  m.pending_culls = FixedVector<std::int32_t>(max_points);
+  m.attempted = FixedVector<std::int32_t>(max_tracks);
   m.thumb_w = m.width / kThumbBlock;
   m.thumb_h = m.height / kThumbBlock;
   m.thumbnail.resize(static_cast<std::size_t>(m.thumb_w * m.thumb_h));
@@ -181,7 +189,7 @@ Tracker::Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock c
     k.points = FixedVector<std::int32_t>(max_tracks + keyframe_points);
     k.thumbnail.resize(m.thumbnail.size());
   }
-  m.message = KeyframeMessage(max_tracks + keyframe_points);
+  m.message = KeyframeMessage(max_tracks + keyframe_points, max_points);
 }
 
 Tracker::~Tracker() = default;
@@ -199,6 +207,7 @@ void Tracker::reset() {
   Impl& m = *impl_;
   m.points.clear();
   m.free_points.clear();
+  m.pending_culls.clear();
   m.tracks.clear();
   for (KeyframeRecord& k : m.keyframes) k.id = -1;
   m.next_keyframe = 0;
@@ -340,7 +349,6 @@ void Tracker::Impl::keep_inlier_tracks() {
     const PoseObservation& o = obs[i];
     next_tracks.push_back(Track{obs_point[i], o.u_px, o.v_px, o.u_right_px});
     MapPoint& p = points[static_cast<std::size_t>(obs_point[i])];
-    ++p.found;
     p.tracked_frame = static_cast<std::int32_t>(frame);
   }
   std::swap(tracks, next_tracks);
@@ -351,9 +359,12 @@ void Tracker::Impl::stage1(const SE3d& prior, TrackResult& result) {
   const Pyramid& cur = pyramid[static_cast<std::size_t>(cur_pyr)];
   obs.clear();
   obs_point.clear();
+  attempted.clear();
+  candidates.clear();
   for (const Track& t : tracks) {
     MapPoint& p = points[static_cast<std::size_t>(t.point)];
     if (!p.alive) continue;
+    attempted.push_back(t.point);
     Eigen::Vector3d uvr;
     double depth = 0.0;
     float u = t.u_px, v = t.v_px;
@@ -390,7 +401,6 @@ void Tracker::Impl::stage2(int radius, TrackResult& result, const KeyframeRecord
     Eigen::Vector3d uvr;
     double depth = 0.0;
     if (!project(T_cw, p.p_world, 8.0, uvr, depth)) return;
-    ++p.visible;
     const int b = detector.bucket_of(static_cast<float>(uvr.x()), static_cast<float>(uvr.y()));
     if (occupancy[static_cast<std::size_t>(b)] >= config.detector.per_bucket) return;
     if (static_cast<int>(candidates.size()) >= limit || obs.full()) return;
@@ -463,8 +473,11 @@ bool Tracker::Impl::relocalise(TrackResult& result) {
 }
 
 bool Tracker::Impl::need_keyframe() const {
+  // Too few tracks: a key-frame adds points, but a scene with little texture would otherwise
+  // make one every frame.
   if (static_cast<double>(tracks.size()) <
-      config.keyframe_track_ratio * static_cast<double>(config.max_tracks)) {
+          config.keyframe_track_ratio * static_cast<double>(config.max_tracks) &&
+      frame - last_keyframe_frame >= config.keyframe_min_frames) {
     return true;
   }
   // Median depth of the tracked points sets the distance scale.
@@ -490,6 +503,32 @@ bool Tracker::Impl::need_keyframe() const {
   return true;
 }
 
+/// Drops points that were rarely found where they were predicted; the mapper hears of it
+/// through the next key-frame's message. Tracked points are kept (they were just found).
+void Tracker::Impl::cull_points() {
+  // Only points looked for this frame are evidence: stage 1's tracks and stage 2's candidates
+  // (a point in view that was not searched says nothing about itself).
+  const auto judge = [this](std::int32_t id) {
+    MapPoint& p = points[static_cast<std::size_t>(id)];
+    if (!p.alive) return;
+    ++p.visible;
+    if (p.tracked_frame == static_cast<std::int32_t>(frame)) {
+      ++p.found;
+      return;
+    }
+    if (p.visible < config.cull_after_visible ||
+        static_cast<double>(p.found) >= config.cull_found_ratio * p.visible) {
+      return;
+    }
+    if (free_points.full() || pending_culls.full()) return;
+    p.alive = false;
+    free_points.push_back(id);
+    pending_culls.push_back(id);
+  };
+  for (std::int32_t id : attempted) judge(id);
+  for (std::int32_t id : candidates) judge(id);
+}
+
 void Tracker::Impl::make_keyframe(TimeNs t_ns, TrackResult& result) {
   const std::int32_t id = next_keyframe;
   message.id = id;
@@ -497,6 +536,9 @@ void Tracker::Impl::make_keyframe(TimeNs t_ns, TrackResult& result) {
   message.T_world_cam = T_cw.inverse();
   message.observations.clear();
   message.new_points.clear();
+  message.culled.clear();
+  for (std::int32_t point : pending_culls) message.culled.push_back(point);
+  pending_culls.clear();
   for (const Track& t : tracks) {
     message.observations.push_back(KeyframeObservation{t.point, t.u_px, t.v_px, t.u_right_px});
   }
@@ -514,6 +556,7 @@ void Tracker::Impl::make_keyframe(TimeNs t_ns, TrackResult& result) {
   make_thumbnail(rect[0].view(), k.thumbnail);
   reference_keyframe = id;
   ++next_keyframe;
+  last_keyframe_frame = frame;
   message_pending = true;
   result.keyframe = true;
 }
@@ -609,6 +652,7 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
     m.state = ok ? TrackingState::kTracking : TrackingState::kLost;
     if (ok) {
       m.velocity = orthonormalised(m.T_cw * m.T_cw_last.inverse());
+      m.cull_points();
       if (m.need_keyframe()) m.make_keyframe(t_ns, result);
     } else {
       m.velocity = SE3d::Identity();

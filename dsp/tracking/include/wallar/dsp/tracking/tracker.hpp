@@ -58,12 +58,18 @@ struct TrackerConfig {
   double keyframe_distance_ratio = 0.12;  //!< of the median scene depth
   double keyframe_angle_deg = 12.0;
   double keyframe_track_ratio = 0.5;  //!< fewer tracked points than this x max_tracks: key-frame
+  int keyframe_min_frames = 5;  //!< ... but not sooner than this after the last (sparse scenes)
   int min_initial_points = 30;        //!< a map needs this many stereo points to start
   int stage2_radius_px = 8;
   int stage2_max_attempts = 200;
   int relocalise_radius_px = 24;
   int relocalise_max_points = 120;
   float max_patch_cost = 14.0f;   //!< zero-mean SAD per pixel accepted by the patch search
+  /// A map point looked for (tracked in stage 1 or searched in stage 2) this many times and
+  /// found in fewer than cull_found_ratio of them is dropped (moving objects, repeated texture,
+  /// bad matches); the next key-frame's message tells the mapper.
+  std::uint32_t cull_after_visible = 20;
+  double cull_found_ratio = 0.25;
   double depth_sigma_px = 0.5;    //!< disparity noise for a new point's depth uncertainty
   DetectorParams detector{.bucket_px = 32};
   KltParams klt;
@@ -79,7 +85,7 @@ struct MapPoint {
   bool alive = false;
   std::int32_t keyframe = -1;      //!< the key-frame that made it
   std::int32_t tracked_frame = -1; //!< last frame it was tracked in
-  std::uint32_t visible = 0, found = 0;  //!< frames it was predicted in view / was found
+  std::uint32_t visible = 0, found = 0;  //!< frames it was looked for / found
   Patch8 patch;                    //!< its look when made (rectified left image)
 };
 
@@ -102,10 +108,12 @@ struct KeyframeMessage {
   SE3d T_world_cam = SE3d::Identity();
   FixedVector<KeyframeObservation> observations;
   FixedVector<NewMapPoint> new_points;
+  /// Map points the tracker gave up on since the last key-frame (rarely found where predicted).
+  FixedVector<std::int32_t> culled;
 
   KeyframeMessage() = default;
-  explicit KeyframeMessage(std::size_t capacity)
-      : observations(capacity), new_points(capacity) {}
+  KeyframeMessage(std::size_t capacity, std::size_t max_culled)
+      : observations(capacity), new_points(capacity), culled(max_culled) {}
   void copy_from(const KeyframeMessage& other);  //!< no allocation: capacities must suffice
 };
 
