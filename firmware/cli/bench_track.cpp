@@ -71,26 +71,11 @@ Sequence synthetic_sequence() {
   room.z_max_m = 2.5;
   const dsp::SyntheticCamera cam;
   Sequence s;
-  for (CameraCalibration& c : s.rig.cams) {
-    c.width_px = cam.width_px;
-    c.height_px = cam.height_px;
-    c.fx = c.fy = cam.f_px;
-    c.cx = cam.cx_px;
-    c.cy = cam.cy_px;
-    c.distortion = {0.0, 0.0, 0.0, 0.0};
-  }
-  s.rig.cams[1].T_body_cam.translation() = Eigen::Vector3d(cam.baseline_m, 0.0, 0.0);
+  s.rig = dsp::synthetic_rig(cam);
   const auto path = dsp::synthetic_trajectory(room, 25, 5.0);
   for (const StampedPose& p : path) {
-    std::array<Image, 2> pair;
-    for (int eye = 0; eye < 2; ++eye) {
-      Image img = Image::allocate(cam.width_px, cam.height_px, PixelFormat::kGray8);
-      dsp::render_room(room, cam, p.T_world_body, eye,
-                       std::span<std::uint8_t>(img.mutable_data(),
-                                               static_cast<std::size_t>(cam.width_px * cam.height_px)));
-      pair[static_cast<std::size_t>(eye)] = img;
-    }
-    s.pairs.push_back(pair);
+    s.pairs.push_back({dsp::render_room_image(room, cam, p.T_world_body, 0),
+                       dsp::render_room_image(room, cam, p.T_world_body, 1)});
   }
   for (std::size_t i = 0; i < 25; ++i) s.order.push_back(i);
   for (std::size_t i = 23; i >= 1; --i) s.order.push_back(i);

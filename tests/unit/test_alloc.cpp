@@ -236,19 +236,6 @@ TEST(Allocations, StereoCaptureAllocatesNothingAfterStart) {
 }  // namespace
 }  // namespace wallar::test
 
-namespace {
-wallar::Image render_eye(const wallar::dsp::SyntheticRoom& room,
-                         const wallar::dsp::SyntheticCamera& cam, const wallar::SE3d& T, int eye) {
-  wallar::Image img =
-      wallar::Image::allocate(cam.width_px, cam.height_px, wallar::PixelFormat::kGray8);
-  wallar::dsp::render_room(
-      room, cam, T, eye,
-      std::span<std::uint8_t>(img.mutable_data(),
-                              static_cast<std::size_t>(cam.width_px * cam.height_px)));
-  return img;
-}
-}  // namespace
-
 TEST(Allocations, TrackerTracksAHundredFramesWithoutAllocating) {
   using namespace wallar;
   dsp::SyntheticRoom room;
@@ -258,21 +245,13 @@ TEST(Allocations, TrackerTracksAHundredFramesWithoutAllocating) {
   room.y_max_m = 2.5;
   room.z_max_m = 2.5;
   const dsp::SyntheticCamera cam;
-  RigCalibration rig;
-  for (CameraCalibration& c : rig.cams) {
-    c.width_px = cam.width_px;
-    c.height_px = cam.height_px;
-    c.fx = c.fy = cam.f_px;
-    c.cx = cam.cx_px;
-    c.cy = cam.cy_px;
-    c.distortion = {0.0, 0.0, 0.0, 0.0};
-  }
-  rig.cams[1].T_body_cam.translation() = Eigen::Vector3d(cam.baseline_m, 0.0, 0.0);
+  const RigCalibration rig = dsp::synthetic_rig(cam);
   // 25 poses of a moving path, played forth and back: key-frames, re-finding and corrections.
   const std::vector<StampedPose> path = dsp::synthetic_trajectory(room, 25, 5.0);
   std::vector<std::array<Image, 2>> pairs;
   for (const StampedPose& p : path) {
-    pairs.push_back({render_eye(room, cam, p.T_world_body, 0), render_eye(room, cam, p.T_world_body, 1)});
+    pairs.push_back({dsp::render_room_image(room, cam, p.T_world_body, 0),
+                     dsp::render_room_image(room, cam, p.T_world_body, 1)});
   }
   dsp::Tracker tracker(rig, dsp::TrackerConfig{});
   dsp::Mapper mapper(tracker.intrinsics());

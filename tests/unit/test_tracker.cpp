@@ -43,30 +43,11 @@ SyntheticRoom test_room() {
   return room;
 }
 
-RigCalibration synthetic_rig(const SyntheticCamera& c) {
-  RigCalibration rig;
-  for (int i = 0; i < 2; ++i) {
-    CameraCalibration& cam = rig.cams[static_cast<std::size_t>(i)];
-    cam.name = i == 0 ? "cam0" : "cam1";
-    cam.width_px = c.width_px;
-    cam.height_px = c.height_px;
-    cam.rate_hz = 20.0;
-    cam.fx = cam.fy = c.f_px;
-    cam.cx = c.cx_px;
-    cam.cy = c.cy_px;
-    cam.distortion = {0.0, 0.0, 0.0, 0.0};
-  }
-  rig.cams[1].T_body_cam.translation() = Eigen::Vector3d(c.baseline_m, 0.0, 0.0);
-  return rig;
-}
+using dsp::synthetic_rig;
 
 Image render(const SyntheticRoom& room, const SyntheticCamera& c, const SE3d& T_world_cam,
              int cam) {
-  Image img = Image::allocate(c.width_px, c.height_px, PixelFormat::kGray8);
-  dsp::render_room(room, c, T_world_cam, cam,
-                   std::span<std::uint8_t>(img.mutable_data(),
-                                           static_cast<std::size_t>(c.width_px * c.height_px)));
-  return img;
+  return dsp::render_room_image(room, c, T_world_cam, cam);
 }
 
 Image filled(int width, int height, std::uint8_t value) {

@@ -372,4 +372,29 @@ std::vector<StampedPose> synthetic_trajectory(const SyntheticRoom& room, int n, 
   return out;
 }
 
+RigCalibration synthetic_rig(const SyntheticCamera& camera) {
+  RigCalibration rig;
+  for (std::size_t i = 0; i < 2; ++i) {
+    CameraCalibration& c = rig.cams[i];
+    c.name = i == 0 ? "cam0" : "cam1";
+    c.width_px = camera.width_px;
+    c.height_px = camera.height_px;
+    c.fx = c.fy = camera.f_px;
+    c.cx = camera.cx_px;
+    c.cy = camera.cy_px;
+    c.distortion = {0.0, 0.0, 0.0, 0.0};
+  }
+  rig.cams[1].T_body_cam.translation() = Eigen::Vector3d(camera.baseline_m, 0.0, 0.0);
+  return rig;
+}
+
+Image render_room_image(const SyntheticRoom& room, const SyntheticCamera& camera,
+                        const SE3d& T_world_cam, int cam) {
+  Image img = Image::allocate(camera.width_px, camera.height_px, PixelFormat::kGray8);
+  render_room(room, camera, T_world_cam, cam,
+              std::span<std::uint8_t>(img.mutable_data(), static_cast<std::size_t>(camera.width_px) *
+                                                              static_cast<std::size_t>(camera.height_px)));
+  return img;
+}
+
 }  // namespace wallar::dsp

@@ -22,6 +22,8 @@
 #include <span>
 #include <vector>
 
+#include "wallar/core/calibration.hpp"
+#include "wallar/core/image.hpp"
 #include "wallar/core/pose.hpp"
 #include "wallar/core/time.hpp"
 
@@ -85,6 +87,14 @@ void render_room(const SyntheticRoom& room, const SyntheticCamera& camera, const
 /// +-0.1 m) once every kSyntheticTrajectoryPeriodS, looking roughly horizontally toward the +y
 /// wall with its heading swinging +-40 deg, pitch +-8 deg and roll +-3 deg. Deterministic and
 /// periodic. Throws std::invalid_argument for n < 0, rate_hz <= 0 or a room under 2 m x 2 m x 1 m.
+/// The rig that `camera` describes, as a calibration (no distortion; the right camera
+/// baseline_m along the left one's +x; body = left camera): what the tracker is given.
+[[nodiscard]] RigCalibration synthetic_rig(const SyntheticCamera& camera);
+
+/// render_room into a new 8-bit gray Image.
+[[nodiscard]] Image render_room_image(const SyntheticRoom& room, const SyntheticCamera& camera,
+                                      const SE3d& T_world_cam, int cam);
+
 inline constexpr double kSyntheticTrajectoryPeriodS = 20.0;
 [[nodiscard]] std::vector<StampedPose> synthetic_trajectory(const SyntheticRoom& room, int n,
                                                             double rate_hz, TimeNs t0_ns = 0);
