@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <atomic>
 #include <cmath>
 #include <thread>
@@ -306,8 +307,12 @@ SyntheticRun fly_through_room(int frames, double rate_hz) {
   return run;
 }
 
+/// Set by CMake when the tests run under an emulator (qemu): fewer rendered frames.
+bool short_tests() { return std::getenv("WALLAR_SHORT_TESTS") != nullptr; }
+
 TEST(TrackerSynthetic, FollowsAKnownPathThroughARenderedRoom) {
-  const SyntheticRun run = fly_through_room(50, 5.0);  // 10 s, half of the loop
+  // 10 s, half of the loop (under an emulator 4 s: 0.85 m).
+  const SyntheticRun run = fly_through_room(short_tests() ? 20 : 50, 5.0);
   EXPECT_EQ(run.lost, 0);
   dsp::TrajectoryEvalOptions eo;
   eo.max_dt_ns = 1'000'000;
@@ -315,7 +320,7 @@ TEST(TrackerSynthetic, FollowsAKnownPathThroughARenderedRoom) {
   std::printf("synthetic: path %.3f m, ATE %.4f m (%.3f %%), max %.4f m, RPE %.4f m / %.3f deg\n",
               e.path_length_m, e.ate_rmse_m, 100.0 * e.ate_rmse_m / e.path_length_m, e.ate_max_m,
               e.rpe_trans_rmse_m, e.rpe_rot_rmse_deg);
-  EXPECT_GT(e.path_length_m, 1.5);
+  EXPECT_GT(e.path_length_m, short_tests() ? 0.6 : 1.5);
   EXPECT_LT(e.ate_rmse_m, 0.01 * e.path_length_m);
   ASSERT_TRUE(run.map != nullptr);
   // The map's points lie on the room's surfaces.
@@ -325,7 +330,7 @@ TEST(TrackerSynthetic, FollowsAKnownPathThroughARenderedRoom) {
   for (std::size_t i = 0; i < run.map->points.size(); ++i) {
     distance.push_back(room.distance_to_nearest_surface(T_world0 * run.map->points.point(i).cast<double>()));
   }
-  ASSERT_GT(distance.size(), 500u);
+  ASSERT_GT(distance.size(), short_tests() ? 300u : 500u);
   std::sort(distance.begin(), distance.end());
   const double median = distance[distance.size() / 2];
   const double p90 = distance[distance.size() * 9 / 10];

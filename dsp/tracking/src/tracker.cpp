@@ -628,6 +628,14 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
         m.stage2(m.config.stage2_radius_px, result, nullptr);
         if (!m.obs.empty()) pose = m.solve(m.T_cw, !pose.ok);
       }
+      if (!pose.ok && !m.velocity.isApprox(SE3d::Identity())) {
+        // The motion model may be what failed (the head stopped or turned back): once more from
+        // the last pose, the gyro's rotation kept.
+        SE3d still = m.T_cw_last;
+        if (gyro.valid) still.linear() = prior.linear();
+        m.stage1(still, result);
+        if (!m.obs.empty()) pose = m.solve(still, true);
+      }
       if (pose.ok) {
         m.T_cw = pose.T_cam_world;
         m.keep_inlier_tracks();
