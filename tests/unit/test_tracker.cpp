@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <filesystem>
 #include <atomic>
 #include <cmath>
 #include <thread>
@@ -345,7 +346,7 @@ TEST(TrackerSynthetic, FollowsAKnownPathThroughARenderedRoom) {
 
 const recording::EurocRecording& euroc_still() {
   static const recording::EurocRecording rec =
-      recording::read_euroc(std::string(WALLAR_TEST_DATA) + "/euroc_v1_01_still");
+      recording::read_euroc(std::filesystem::path(WALLAR_TEST_DATA) / "euroc_v1_01_still");
   return rec;
 }
 
