@@ -177,8 +177,9 @@ void TrackingSystem::mapping_loop() {
 
 std::shared_ptr<const dsp::MapSnapshot> TrackingSystem::finish() {
   if (thread_.joinable()) {
-    // Let the mapper take what is queued, then stop it.
-    while (keyframes_.front() != nullptr) {
+    // Let the mapper take what is queued, then stop it. (front() is the consumer's: this
+    // thread is the producer, so it may only ask how full the ring is.)
+    while (keyframes_.size_approx() != 0) {
       while (dsp::MapCorrection* c = corrections_.front()) {
         tracker_.apply(*c);
         corrections_.pop();
