@@ -17,7 +17,7 @@
 namespace wallar::test {
 namespace {
 
-constexpr double kDeg = 180.0 / M_PI;
+constexpr double kRadToDeg = 180.0 / M_PI;
 
 Eigen::Vector3d rotvec_of(const Eigen::Matrix3d& R) {
   const Eigen::AngleAxisd aa(R);
@@ -92,20 +92,20 @@ TEST(ImuCamRotation, RecoversTheEurocCameraRotationFromNoisyRelativeRotations) {
     const Eigen::Matrix3d R_imu0_imu1 = m.R_world_imu[k].transpose() * m.R_world_imu[k + 2];
     // What the essential matrix of the two images would give, with 0.1-degree errors.
     const Eigen::Vector3d cam = rotvec_of(R_cam_imu * R_imu0_imu1 * R_cam_imu.transpose()) +
-                                (0.1 / kDeg) * Eigen::Vector3d(noise(), noise(), noise());
+                                (0.1 / kRadToDeg) * Eigen::Vector3d(noise(), noise(), noise());
     imu_rv.push_back(*rv);
     cam_rv.push_back(cam);
   }
   const auto r = dsp::solve_R_cam_imu(imu_rv, cam_rv);
   ASSERT_TRUE(r);
   EXPECT_EQ(r->pairs, imu_rv.size());
-  const double error_deg = Eigen::AngleAxisd(r->R_cam_imu * R_cam_imu.transpose()).angle() * kDeg;
+  const double error_deg = Eigen::AngleAxisd(r->R_cam_imu * R_cam_imu.transpose()).angle() * kRadToDeg;
   EXPECT_LT(error_deg, 0.3);
   EXPECT_NEAR(r->R_cam_imu.determinant(), 1.0, 1e-9);
   EXPECT_GT(r->min_axis_spread, 0.3);
-  EXPECT_LT(r->residual_rms_rad * kDeg, 0.15);
+  EXPECT_LT(r->residual_rms_rad * kRadToDeg, 0.15);
   // The identity (no calibration) would be far off: the test can tell.
-  EXPECT_GT(Eigen::AngleAxisd(R_cam_imu).angle() * kDeg, 80.0);
+  EXPECT_GT(Eigen::AngleAxisd(R_cam_imu).angle() * kRadToDeg, 80.0);
 }
 
 TEST(ImuCamRotation, RotationsAboutOneAxisAreFlaggedAsUndetermined) {
@@ -167,11 +167,11 @@ TEST(ImuCamRotation, CameraRotationBetweenTwoRealImagesTurnedByAKnownRotation) {
   const auto r = dsp::camera_rotation_between(base, turned, cam);
   ASSERT_TRUE(r);
   EXPECT_GT(r->inliers, 100u);
-  EXPECT_LT((r->rotvec_cam0_cam1 - truth).norm() * kDeg, 0.05) << r->rotvec_cam0_cam1.transpose();
+  EXPECT_LT((r->rotvec_cam0_cam1 - truth).norm() * kRadToDeg, 0.05) << r->rotvec_cam0_cam1.transpose();
   // The same image twice: no rotation.
   const auto none = dsp::camera_rotation_between(base, base, cam);
   ASSERT_TRUE(none);
-  EXPECT_LT(none->rotvec_cam0_cam1.norm() * kDeg, 0.01);
+  EXPECT_LT(none->rotvec_cam0_cam1.norm() * kRadToDeg, 0.01);
 }
 
 // A recording whose camera turns about three axes in front of the bundled real view, with a
@@ -232,13 +232,13 @@ TEST(ImuCamRotation, CalibratesARecordingThatTurnsAndRefusesAStillOne) {
   const firmware::ImuCamCalibration c = firmware::calibrate_imu_cam(rec);
   EXPECT_GE(c.solved.pairs, 10u);
   const double error_deg =
-      Eigen::AngleAxisd(c.solved.R_cam_imu * R_cam_imu.transpose()).angle() * kDeg;
+      Eigen::AngleAxisd(c.solved.R_cam_imu * R_cam_imu.transpose()).angle() * kRadToDeg;
   EXPECT_LT(error_deg, 0.5);
   EXPECT_LT(c.vs_calibration_deg, 0.5);  // the rig's T_BS holds the same rotation
   EXPECT_GT(c.solved.min_axis_spread, 0.2);
   std::printf(
       "R_cam_imu error %.3f deg from %zu of %zu pairs (residual %.3f deg RMS, spread %.2f)\n",
-      error_deg, c.solved.pairs, c.frame_pairs, c.solved.residual_rms_rad * kDeg,
+      error_deg, c.solved.pairs, c.frame_pairs, c.solved.residual_rms_rad * kRadToDeg,
       c.solved.min_axis_spread);
 
   const auto still = recording::read_euroc(bundled_recording());

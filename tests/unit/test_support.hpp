@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -21,6 +22,10 @@
 namespace wallar::test {
 
 namespace fs = std::filesystem;
+
+/// True under an emulator (qemu-aarch64: tests/CMakeLists.txt sets WALLAR_SHORT_TESTS), where
+/// the slowest tests run the same checks on fewer seeds, frames or rounds.
+inline bool short_tests() { return std::getenv("WALLAR_SHORT_TESTS") != nullptr; }
 
 inline fs::path bundled_recording() { return fs::path(WALLAR_TEST_DATA) / "euroc_v1_01_still"; }
 

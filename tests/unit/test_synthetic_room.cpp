@@ -21,16 +21,16 @@
 namespace wallar::dsp {
 namespace {
 
-using Image = std::vector<std::uint8_t>;
+using Pixels = std::vector<std::uint8_t>;
 
-Image render(const SyntheticRoom& room, const SyntheticCamera& camera, const SE3d& T_world_cam,
+Pixels render(const SyntheticRoom& room, const SyntheticCamera& camera, const SE3d& T_world_cam,
              int cam) {
-  Image img(static_cast<std::size_t>(camera.width_px * camera.height_px));
+  Pixels img(static_cast<std::size_t>(camera.width_px * camera.height_px));
   render_room(room, camera, T_world_cam, cam, img);
   return img;
 }
 
-void maybe_dump(const Image& img, const SyntheticCamera& camera, const std::string& name) {
+void maybe_dump(const Pixels& img, const SyntheticCamera& camera, const std::string& name) {
   const char* dir = std::getenv("WALLAR_DUMP_SYNTHETIC_ROOM");
   if (dir == nullptr) return;
   std::ofstream f(std::string(dir) + "/" + name + ".pgm", std::ios::binary);
@@ -99,7 +99,7 @@ TEST(SyntheticRoom, RayHitsLieOnTheExpectedPlane) {
 
 // Sum of squared differences of a (2r+1)^2 block at left (ul, v) and right (ul - disparity, v),
 // the right image linearly interpolated along the row.
-double ssd(const Image& l, const Image& r, int w, int ul, int v, double disparity, int radius) {
+double ssd(const Pixels& l, const Pixels& r, int w, int ul, int v, double disparity, int radius) {
   double s = 0;
   for (int dy = -radius; dy <= radius; ++dy) {
     for (int dx = -radius; dx <= radius; ++dx) {
@@ -128,8 +128,8 @@ TEST(SyntheticRoom, DisparityMatchesDepth) {
   const SyntheticRoom room;
   const SyntheticCamera camera;
   const SE3d T = test_pose(room);
-  const Image left = render(room, camera, T, 0);
-  const Image right = render(room, camera, T, 1);
+  const Pixels left = render(room, camera, T, 0);
+  const Pixels right = render(room, camera, T, 1);
   maybe_dump(left, camera, "room_left");
   maybe_dump(right, camera, "room_right");
   const int w = camera.width_px;
@@ -188,11 +188,11 @@ TEST(SyntheticRoom, SameSeedSameBytesOtherSeedOtherImage) {
   SyntheticRoom room;
   const SyntheticCamera camera;
   const SE3d T = test_pose(room);
-  const Image a = render(room, camera, T, 0);
-  const Image b = render(room, camera, T, 0);
+  const Pixels a = render(room, camera, T, 0);
+  const Pixels b = render(room, camera, T, 0);
   EXPECT_EQ(a, b);
   room.texture_seed = 2;
-  const Image c = render(room, camera, T, 0);
+  const Pixels c = render(room, camera, T, 0);
   std::size_t differ = 0;
   for (std::size_t i = 0; i < a.size(); ++i) differ += a[i] != c[i] ? 1 : 0;
   EXPECT_GT(differ, a.size() / 2);
@@ -232,7 +232,7 @@ TEST(SyntheticRoom, TrajectoryIsSmoothClosedAndClearOfTheWalls) {
 
 // FAST-9 segment test: 9 contiguous of the 16 circle pixels all brighter than p + t or all
 // darker than p - t.
-bool fast9(const Image& img, int w, int u, int v, int threshold) {
+bool fast9(const Pixels& img, int w, int u, int v, int threshold) {
   static constexpr std::array<std::array<int, 2>, 16> kCircle = {{{0, -3},
                                                                   {1, -3},
                                                                   {2, -2},
@@ -274,7 +274,7 @@ TEST(SyntheticRoom, ManyWellSpreadCorners) {
                                              ? std::vector<std::size_t>{0, 250}
                                              : std::vector<std::size_t>{0, 60, 130, 250, 330};
   for (const std::size_t k : poses) {
-    const Image img = render(room, camera, traj[k].T_world_body, 0);
+    const Pixels img = render(room, camera, traj[k].T_world_body, 0);
     const int w = camera.width_px, h = camera.height_px;
     int total = 0;
     std::array<int, 16> cells{};
@@ -296,9 +296,9 @@ TEST(SyntheticRoom, ManyWellSpreadCorners) {
 TEST(SyntheticRoom, RejectsBadArguments) {
   const SyntheticRoom room;
   const SyntheticCamera camera;
-  Image img(10);
+  Pixels img(10);
   EXPECT_THROW(render_room(room, camera, SE3d::Identity(), 0, img), std::invalid_argument);
-  Image full(static_cast<std::size_t>(camera.width_px * camera.height_px));
+  Pixels full(static_cast<std::size_t>(camera.width_px * camera.height_px));
   EXPECT_THROW(render_room(room, camera, SE3d::Identity(), 2, full), std::invalid_argument);
   EXPECT_THROW((void)synthetic_trajectory(room, -1, 20.0), std::invalid_argument);
   EXPECT_THROW((void)synthetic_trajectory(room, 10, 0.0), std::invalid_argument);

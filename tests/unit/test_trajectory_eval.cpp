@@ -13,7 +13,7 @@
 namespace wallar::dsp {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+constexpr double kDegToRad = std::numbers::pi / 180.0;
 
 StampedPose pose_at(double t_s, const Eigen::Vector3d& p,
                     const Eigen::Matrix3d& R = Eigen::Matrix3d::Identity()) {
@@ -64,7 +64,7 @@ TEST(TrajectoryEval, RigidCopyAlignsToZero) {
   const auto gt = curve();
   SE3d T_est_gt = SE3d::Identity();  // the estimate's world is rotated and shifted
   T_est_gt.linear() =
-      (Eigen::AngleAxisd(70 * kDeg, Eigen::Vector3d(1, 2, 3).normalized())).toRotationMatrix();
+      (Eigen::AngleAxisd(70 * kDegToRad, Eigen::Vector3d(1, 2, 3).normalized())).toRotationMatrix();
   T_est_gt.translation() = Eigen::Vector3d(4, -2, 0.5);
   auto est = gt;
   for (auto& p : est) p.T_world_body = T_est_gt * p.T_world_body;
@@ -116,7 +116,7 @@ TEST(TrajectoryEval, RotationDriftGivesTheKnownRpe) {
     gt.push_back(pose_at(t, {1, 2, 1.5}));
     est.push_back(
         pose_at(t, {1, 2, 1.5},
-                Eigen::AngleAxisd(2.0 * kDeg * t, Eigen::Vector3d::UnitZ()).toRotationMatrix()));
+                Eigen::AngleAxisd(2.0 * kDegToRad * t, Eigen::Vector3d::UnitZ()).toRotationMatrix()));
   }
   const TrajectoryErrors e = evaluate_trajectory(est, gt);
   EXPECT_NEAR(e.rpe_rot_rmse_deg, 2.0, 1e-9);
@@ -128,7 +128,7 @@ TEST(TrajectoryEval, InterpolatesGroundTruthAndSkipsUnmatchedTimes) {
   // gt at 10 Hz with a gap from 3 s to 5 s; linear motion and a steady turn.
   auto truth = [](double t) {
     return pose_at(t, {0.3 * t, -0.2 * t, 1.0},
-                   Eigen::AngleAxisd(10.0 * kDeg * t, Eigen::Vector3d::UnitZ()).toRotationMatrix());
+                   Eigen::AngleAxisd(10.0 * kDegToRad * t, Eigen::Vector3d::UnitZ()).toRotationMatrix());
   };
   std::vector<StampedPose> gt;
   for (int k = 0; k <= 100; ++k) {
@@ -175,7 +175,7 @@ TEST(TrajectoryEval, AlignRigidRecoversAKnownTransform) {
   std::vector<Eigen::Vector3d> from, to;
   SE3d T = SE3d::Identity();
   T.linear() =
-      Eigen::AngleAxisd(-40 * kDeg, Eigen::Vector3d(0.2, -1, 0.4).normalized()).toRotationMatrix();
+      Eigen::AngleAxisd(-40 * kDegToRad, Eigen::Vector3d(0.2, -1, 0.4).normalized()).toRotationMatrix();
   T.translation() = Eigen::Vector3d(-1, 0.5, 2);
   for (int k = 0; k < 7; ++k) {
     from.emplace_back(std::sin(1.3 * k), std::cos(0.7 * k), 0.1 * k * k);

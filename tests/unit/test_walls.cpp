@@ -6,6 +6,7 @@
 #include <cmath>
 #include <random>
 
+#include "test_support.hpp"
 #include "wallar/drivers/cloud/cloud_io.hpp"
 #include "wallar/dsp/walls/plane_kernel.hpp"
 #include "wallar/dsp/walls/room.hpp"
@@ -217,9 +218,11 @@ TEST(TwoDMode, FindsTheWallInAGravityRotatedScene) {
 }
 
 TEST(SparseMap, ASmallWallIsFoundWithFewRoundsByGuidedSampling) {
-  int found_3d = 0, found_2d = 0;
+  // 20 seeds; under an emulator (test::short_tests(), ~30x slower) 8 of them.
+  const std::uint64_t seeds = test::short_tests() ? 8 : 20;
+  std::uint64_t found_3d = 0, found_2d = 0;
   std::uint64_t rounds_3d = 0;
-  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+  for (std::uint64_t seed = 1; seed <= seeds; ++seed) {
     SparseMapParams p;
     p.seed = seed;
     const auto scene = make_sparse_map(p);
@@ -234,10 +237,11 @@ TEST(SparseMap, ASmallWallIsFoundWithFewRoundsByGuidedSampling) {
     det.set_points(scene.cloud, kGravity);
     found_2d += is_plane(det.detect_vertical().plane, scene.wall);
   }
-  EXPECT_GE(found_3d, 19);
-  EXPECT_GE(found_2d, 19);
+  // At most one miss.
+  EXPECT_GE(found_3d, seeds - 1);
+  EXPECT_GE(found_2d, seeds - 1);
   // Uniform sampling would need about 110,000 rounds (eq. 2.7, 3.5 % inliers, 99 %).
-  EXPECT_LT(rounds_3d / 20, 20'000u);
+  EXPECT_LT(rounds_3d / seeds, 20'000u);
 }
 
 TEST(Room, FourWallsFloorAndCeilingWithKindsExtentsAndStableIds) {

@@ -24,7 +24,7 @@ struct PointRecord {
   bool alive = true;
   std::vector<Observation> observations;
 };
-struct KeyframeRecord {
+struct MapperKeyframe {
   std::int32_t id = -1;
   TimeNs t_ns = 0;
   SE3d T_world_cam = SE3d::Identity();
@@ -36,7 +36,7 @@ struct KeyframeRecord {
 struct Mapper::Impl {
   StereoIntrinsics K;
   MapperConfig config;
-  std::vector<KeyframeRecord> keyframes;
+  std::vector<MapperKeyframe> keyframes;
   std::vector<PointRecord> points;
   std::unordered_map<std::int32_t, std::int32_t> point_index;  // tracker id -> index
   std::uint64_t version = 0;
@@ -56,7 +56,7 @@ int Mapper::keyframe_count() const { return static_cast<int>(impl_->keyframes.si
 void Mapper::add_keyframe(const KeyframeMessage& message) {
   Impl& m = *impl_;
   const int k = static_cast<int>(m.keyframes.size());
-  KeyframeRecord record;
+  MapperKeyframe record;
   record.id = message.id;
   record.t_ns = message.t_ns;
   record.T_world_cam = message.T_world_cam;
@@ -140,7 +140,7 @@ MapperStats Mapper::Impl::adjust(int first_keyframe, int iterations, MapCorrecti
   stats.final_cost = r.final_cost;
   for (std::size_t bk = 0; bk < ba_keyframes.size(); ++bk) {
     if (ba_keyframes[bk].fixed) continue;
-    KeyframeRecord& k = keyframes[static_cast<std::size_t>(keyframe_of_ba[bk])];
+    MapperKeyframe& k = keyframes[static_cast<std::size_t>(keyframe_of_ba[bk])];
     k.T_world_cam = ba_keyframes[bk].T_cam_world.inverse();
     out.keyframes.push_back(MapCorrection::Keyframe{k.id, k.T_world_cam});
     ++stats.adjusted_keyframes;
@@ -192,7 +192,7 @@ MapSnapshot Mapper::snapshot() const {
   const Impl& m = *impl_;
   MapSnapshot s;
   s.version = m.version;
-  for (const KeyframeRecord& k : m.keyframes) {
+  for (const MapperKeyframe& k : m.keyframes) {
     s.keyframe_centres.push_back(k.T_world_cam.translation());
     s.keyframe_t_ns.push_back(k.t_ns);
   }

@@ -79,7 +79,7 @@ double mean(const std::vector<double>& v) {
   return s / static_cast<double>(v.size());
 }
 
-double median(std::vector<double> v) {
+double median_or_zero(std::vector<double> v) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
   const std::size_t h = v.size() / 2;
@@ -489,11 +489,11 @@ nlohmann::json sweep_runtime(Context& c) {
           rounds.push_back(tr.rounds);
           r.add(tr.success);
         }
-        t.add(m.name).add(n).add(ratio).add(median(ms)).add(median(rounds)).add(r.value());
+        t.add(m.name).add(n).add(ratio).add(median_or_zero(ms)).add(median_or_zero(rounds)).add(r.value());
         t.end_row();
         findings[m.name].push_back({{"points", n},
                                     {"inlier_ratio", ratio},
-                                    {"median_time_ms", median(ms)},
+                                    {"median_time_ms", median_or_zero(ms)},
                                     {"robustness", r.value()}});
       }
       c.note("ratio " + num(ratio) + ", " + num(n) + " points done");
