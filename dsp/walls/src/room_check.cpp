@@ -56,16 +56,4 @@ std::optional<FloorCheck> check_floor(const PointCloud& cloud, const RoomResult&
   return check;
 }
 
-std::array<std::uint8_t, 3> surface_colour_rgb(std::uint32_t id) {
-  static constexpr std::array<std::array<std::uint8_t, 3>, 8> kPalette{{{230, 25, 75},
-                                                                        {60, 180, 75},
-                                                                        {0, 130, 200},
-                                                                        {245, 130, 48},
-                                                                        {145, 30, 180},
-                                                                        {70, 240, 240},
-                                                                        {240, 50, 230},
-                                                                        {210, 245, 60}}};
-  return kPalette[(id - 1) % kPalette.size()];
-}
-
 }  // namespace wallar::dsp

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <string_view>
 #include <vector>
@@ -47,6 +48,23 @@ struct Wall {
     return origin + extent_uv_m[i].x() * u + extent_uv_m[i].y() * v;
   }
 };
+
+/// The display colour (8-bit RGB) of the surface with this id; the same id, the same colour
+/// (point clouds, plots and the headset's overlay agree).
+[[nodiscard]] constexpr std::array<std::uint8_t, 3> surface_colour_rgb(std::uint32_t id) {
+  constexpr std::array<std::array<std::uint8_t, 3>, 8> kPalette{{{230, 25, 75},
+                                                                 {60, 180, 75},
+                                                                 {0, 130, 200},
+                                                                 {245, 130, 48},
+                                                                 {145, 30, 180},
+                                                                 {70, 240, 240},
+                                                                 {240, 50, 230},
+                                                                 {210, 245, 60}}};
+  return kPalette[(id - 1) % kPalette.size()];
+}
+
+/// The display colour of points on no surface.
+inline constexpr std::array<std::uint8_t, 3> kNoSurfaceRgb{128, 128, 128};
 
 /// The room as last estimated.
 struct WallModel {

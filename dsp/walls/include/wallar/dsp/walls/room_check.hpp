@@ -48,10 +48,8 @@ std::optional<FloorCheck> check_floor(const PointCloud& cloud, const RoomResult&
                                       double threshold_m, const Eigen::Vector3d& up,
                                       const std::optional<Eigen::Vector3d>& up2 = std::nullopt);
 
-/// The display colour (8-bit RGB) of the surface with this id; the same id, the same colour.
-std::array<std::uint8_t, 3> surface_colour_rgb(std::uint32_t id);
-
-/// The display colour of points on no surface.
-inline constexpr std::array<std::uint8_t, 3> kNoSurfaceRgb{128, 128, 128};
+// The surfaces' display colours live beside Wall (wallar/core/wall.hpp).
+using wallar::kNoSurfaceRgb;
+using wallar::surface_colour_rgb;
 
 }  // namespace wallar::dsp
