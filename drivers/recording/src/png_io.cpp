@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file png_io.cpp
-/// @brief 8-bit gray (and RGB, write only) PNG through libpng's simplified API (available on every
-/// target, unlike OpenCV's imgcodecs on the arm64 multiarch build).
+/// @brief 8-bit gray and RGB PNG through libpng's simplified API (available on every target,
+/// unlike OpenCV's imgcodecs on the arm64 multiarch build).
 #include <png.h>
 
 #include <cstring>
@@ -11,7 +11,10 @@
 
 namespace wallar::recording {
 
-Image load_png_gray(const std::filesystem::path& path, int expected_width, int expected_height) {
+namespace {
+
+Image load_png(const std::filesystem::path& path, PixelFormat format, int expected_width,
+               int expected_height) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
     throw_input_error(path.string(), 0, "no such image file");
@@ -35,8 +38,9 @@ Image load_png_gray(const std::filesystem::path& path, int expected_width, int e
     png_image_free(&png);
     throw_input_error(path.string(), 0, "implausible PNG size");
   }
-  png.format = PNG_FORMAT_GRAY;  // colour input is converted to gray by libpng
-  Image image = Image::allocate(width, height, PixelFormat::kGray8);
+  // libpng converts: colour to gray, gray to RGB, alpha composed away.
+  png.format = format == PixelFormat::kRgb8 ? PNG_FORMAT_RGB : PNG_FORMAT_GRAY;
+  Image image = Image::allocate(width, height, format);
   if (png_image_finish_read(&png, nullptr, image.mutable_data(), image.stride_bytes(), nullptr) ==
       0) {
     const std::string msg = png.message;
@@ -45,8 +49,6 @@ Image load_png_gray(const std::filesystem::path& path, int expected_width, int e
   }
   return image;
 }
-
-namespace {
 
 // libpng's simplified-API header for writing `image` in `format`.
 png_image png_header(const Image& image, png_uint_32 format) {
@@ -61,15 +63,32 @@ png_image png_header(const Image& image, png_uint_32 format) {
 
 }  // namespace
 
-void save_png_gray(const std::filesystem::path& path, const Image& image) {
-  if (image.empty() || image.format() != PixelFormat::kGray8) {
-    throw_input_error(path.string(), 0, "only non-empty 8-bit gray images can be saved as PNG");
+Image load_png_gray(const std::filesystem::path& path, int expected_width, int expected_height) {
+  return load_png(path, PixelFormat::kGray8, expected_width, expected_height);
+}
+
+Image load_png_rgb(const std::filesystem::path& path) {
+  return load_png(path, PixelFormat::kRgb8, 0, 0);
+}
+
+void save_png(const std::filesystem::path& path, const Image& image) {
+  if (image.empty() || image.format() == PixelFormat::kYuyv) {
+    throw_input_error(path.string(), 0,
+                      "only non-empty 8-bit gray or RGB images can be saved as PNG");
   }
-  png_image png = png_header(image, PNG_FORMAT_GRAY);
+  png_image png = png_header(
+      image, image.format() == PixelFormat::kRgb8 ? PNG_FORMAT_RGB : PNG_FORMAT_GRAY);
   if (png_image_write_to_file(&png, path.c_str(), 0, image.data(), image.stride_bytes(), nullptr) ==
       0) {
     throw_input_error(path.string(), 0, std::string("cannot write PNG: ") + png.message);
   }
+}
+
+void save_png_gray(const std::filesystem::path& path, const Image& image) {
+  if (image.format() != PixelFormat::kGray8) {
+    throw_input_error(path.string(), 0, "only non-empty 8-bit gray images can be saved as PNG");
+  }
+  save_png(path, image);
 }
 
 std::vector<std::uint8_t> encode_png_rgb(const Image& image, const std::string& name) {

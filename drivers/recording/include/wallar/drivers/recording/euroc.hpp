@@ -117,8 +117,13 @@ CameraCalibration parse_camera_sensor_yaml(std::string_view text, const std::str
 /// unreadable, or (when expected sizes are > 0) not expected_width x expected_height.
 Image load_png_gray(const std::filesystem::path& path, int expected_width = 0,
                     int expected_height = 0);
+/// Loads a PNG as 8-bit RGB (gray converted, alpha composed on black); throws InputError when
+/// the file is missing or unreadable.
+Image load_png_rgb(const std::filesystem::path& path);
 /// Writes an 8-bit gray image as PNG; throws InputError on failure.
 void save_png_gray(const std::filesystem::path& path, const Image& image);
+/// Writes an 8-bit gray or RGB image as PNG; throws InputError on failure.
+void save_png(const std::filesystem::path& path, const Image& image);
 /// Encodes an 8-bit RGB image as PNG in memory (for writers that place the file themselves,
 /// e.g. atomically); throws InputError naming `name` on failure.
 std::vector<std::uint8_t> encode_png_rgb(const Image& image, const std::string& name);
