@@ -13,6 +13,11 @@ pkg_check_modules(PNG REQUIRED IMPORTED_TARGET libpng)
 pkg_check_modules(JPEG REQUIRED IMPORTED_TARGET libjpeg)  # MJPEG frames, JPEG calibration images
 pkg_check_modules(USB REQUIRED IMPORTED_TARGET libusb-1.0)  # drivers/usb: discovery, hot-plug
 pkg_check_modules(GPIOD REQUIRED IMPORTED_TARGET libgpiod)  # v1 API (gpiod.h), Debian 12: 1.6.3
+# The headset view (drivers/display): Mesa's EGL and GLES, GBM and libdrm for KMS.
+pkg_check_modules(EGL REQUIRED IMPORTED_TARGET egl)
+pkg_check_modules(GLES REQUIRED IMPORTED_TARGET glesv2)
+pkg_check_modules(GBM REQUIRED IMPORTED_TARGET gbm)
+pkg_check_modules(DRM REQUIRED IMPORTED_TARGET libdrm)
 find_package(CLI11 CONFIG REQUIRED)
 find_package(nlohmann_json 3.10 REQUIRED)
 find_package(hwy REQUIRED)  # Highway: portable SIMD with run-time dispatch
