@@ -17,30 +17,6 @@ bool same_plane(const Plane& a, const Plane& b, double angle_rad, double offset_
 
 }  // namespace
 
-std::vector<Eigen::Vector2d> convex_hull(std::vector<Eigen::Vector2d> p) {
-  std::sort(p.begin(), p.end(), [](const auto& a, const auto& b) {
-    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
-  });
-  p.erase(std::unique(p.begin(), p.end()), p.end());
-  if (p.size() < 3) return p;
-  const auto cross = [](const Eigen::Vector2d& o, const Eigen::Vector2d& a,
-                        const Eigen::Vector2d& b) {
-    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
-  };
-  std::vector<Eigen::Vector2d> hull(2 * p.size());
-  std::size_t k = 0;
-  for (const auto& q : p) {
-    while (k >= 2 && cross(hull[k - 2], hull[k - 1], q) <= 0) --k;
-    hull[k++] = q;
-  }
-  for (std::size_t i = p.size() - 1, lower = k + 1; i-- > 0;) {
-    while (k >= lower && cross(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
-    hull[k++] = p[i];
-  }
-  hull.resize(k - 1);
-  return hull;
-}
-
 void set_extent(Wall& wall, const std::vector<Eigen::Vector3d>& inliers,
                 const std::optional<Eigen::Vector3d>& up) {
   const Eigen::Vector3d& n = wall.plane.n;

@@ -17,6 +17,7 @@
 #include <optional>
 #include <vector>
 
+#include "wallar/core/convex_hull.hpp"
 #include "wallar/core/wall.hpp"
 #include "wallar/dsp/walls/wall_detector.hpp"
 
@@ -65,8 +66,8 @@ class RoomEstimator {
   std::vector<Eigen::Vector3d> inliers_;
 };
 
-/// Convex hull (counter-clockwise, Andrew's monotone chain) of 2-D points.
-std::vector<Eigen::Vector2d> convex_hull(std::vector<Eigen::Vector2d> points);
+// Convex hull of 2-D points: wallar/core/convex_hull.hpp (shared with the renderer).
+using wallar::convex_hull;
 
 /// Fills wall.origin/u/v/extent_uv_m from the wall's inliers (u horizontal when `up` is given).
 void set_extent(Wall& wall, const std::vector<Eigen::Vector3d>& inliers,
