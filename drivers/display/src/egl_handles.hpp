@@ -14,6 +14,9 @@ struct EglHandles {
   EGLDisplay display = EGL_NO_DISPLAY;
   EGLContext context = EGL_NO_CONTEXT;
   EGLSurface surface = EGL_NO_SURFACE;
+  /// false: leave the display initialised (the process-wide surfaceless display, whose driver
+  /// would otherwise be unloaded and loaded again, with its JIT, for every output).
+  bool terminate = true;
   EglHandles() = default;
   EglHandles(const EglHandles&) = delete;
   EglHandles& operator=(const EglHandles&) = delete;
@@ -22,7 +25,7 @@ struct EglHandles {
     eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
     if (surface != EGL_NO_SURFACE) eglDestroySurface(display, surface);
     if (context != EGL_NO_CONTEXT) eglDestroyContext(display, context);
-    eglTerminate(display);
+    if (terminate) eglTerminate(display);
     eglReleaseThread();
   }
 };

@@ -49,6 +49,9 @@ class HeadlessOutput final : public DisplayOutput {
                          " (apt install libegl-mesa0 libgl1-mesa-dri)");
     }
     egl_.display = display;
+    // Mesa's surfaceless display is one per process: initialised once, never terminated
+    // (terminating unloads llvmpipe, whose allocations LeakSanitizer then cannot attribute).
+    egl_.terminate = false;
     fail_unless(eglBindAPI(EGL_OPENGL_ES_API), "eglBindAPI(OpenGL ES)");
     const EGLint config_attribs[] = {EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_RENDERABLE_TYPE,
                                      EGL_OPENGL_ES3_BIT, EGL_RED_SIZE, 8, EGL_GREEN_SIZE, 8,

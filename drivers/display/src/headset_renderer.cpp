@@ -15,6 +15,8 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
+#include "wallar/core/convex_hull.hpp"
+
 namespace wallar::display {
 namespace {
 
@@ -79,9 +81,10 @@ void main() { frag = u_colour; }
 constexpr const char* kTextureFragment = R"(#version 300 es
 precision mediump float;
 uniform sampler2D u_texture;
+uniform vec2 u_tex_scale;  // the part of the texture shown (the HUD's lines in use)
 in vec2 v_unit;
 out vec4 frag;
-void main() { frag = texture(u_texture, vec2(v_unit.x, v_unit.y)); }
+void main() { frag = texture(u_texture, v_unit * u_tex_scale); }
 )";
 
 // Lens pre-distortion: the eye's undistorted view (a texture of the whole display) sampled at
@@ -108,6 +111,12 @@ void main() {
 }
 )";
 
+/// A shader or program info log as one line of a DisplayError.
+[[noreturn]] void throw_gl_log(const std::string& what, char* log, std::size_t size) {
+  for (std::size_t i = 0; i < size && log[i] != '\0'; ++i) log[i] = log[i] == '\n' ? ' ' : log[i];
+  throw DisplayError("display: " + what + ": " + log);
+}
+
 GLuint compile(GLenum type, const char* source, const char* name) {
   const GLuint shader = glCreateShader(type);
   glShaderSource(shader, 1, &source, nullptr);
@@ -118,8 +127,7 @@ GLuint compile(GLenum type, const char* source, const char* name) {
     char log[512] = {};
     glGetShaderInfoLog(shader, sizeof log, nullptr, log);
     glDeleteShader(shader);
-    for (char& c : log) c = c == '\n' ? ' ' : c;
-    throw DisplayError(std::string("display: shader ") + name + " does not compile: " + log);
+    throw_gl_log(std::string("shader ") + name + " does not compile", log, sizeof log);
   }
   return shader;
 }
@@ -139,7 +147,7 @@ GLuint link(const char* vertex, const char* fragment, const char* name) {
     char log[512] = {};
     glGetProgramInfoLog(program, sizeof log, nullptr, log);
     glDeleteProgram(program);
-    throw DisplayError(std::string("display: program ") + name + " does not link: " + log);
+    throw_gl_log(std::string("program ") + name + " does not link", log, sizeof log);
   }
   return program;
 }
@@ -163,29 +171,6 @@ Eigen::Matrix4d clip_from_camera(const EyeCamera& c, double near_m, double far_m
 
 double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   return a.x() * b.y() - a.y() * b.x();
-}
-
-/// Convex hull, counter-clockwise (Andrew's monotone chain); `out` is reused.
-void convex_hull(std::vector<Eigen::Vector2d> pts, std::vector<Eigen::Vector2d>& out) {
-  out.clear();
-  std::sort(pts.begin(), pts.end(), [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
-  });
-  if (pts.size() < 3) {
-    out = pts;
-    return;
-  }
-  out.resize(2 * pts.size());
-  std::size_t k = 0;
-  for (std::size_t i = 0; i < pts.size(); ++i) {
-    while (k >= 2 && cross2(out[k - 1] - out[k - 2], pts[i] - out[k - 2]) <= 0.0) --k;
-    out[k++] = pts[i];
-  }
-  for (std::size_t i = pts.size() - 1, lower = k + 1; i-- > 0;) {
-    while (k >= lower && cross2(out[k - 1] - out[k - 2], pts[i] - out[k - 2]) <= 0.0) --k;
-    out[k++] = pts[i];
-  }
-  out.resize(k - 1);
 }
 
 /// Clips segment a-b to a convex counter-clockwise polygon (Cyrus-Beck); false if outside.
@@ -227,7 +212,8 @@ struct Batch {
 
 constexpr std::size_t kMaxVertices = 1 << 16;
 constexpr int kHudWidthPx = 560;
-constexpr int kHudHeightPx = 84;
+constexpr int kHudHeightPx = 84;      // two lines
+constexpr int kHudLineHeightPx = 46;  // the first line alone
 
 }  // namespace
 
@@ -356,6 +342,7 @@ struct HeadsetRenderer::Impl {
     vertices.clear();
     batches.clear();
     order.clear();
+    // At most order.capacity() (64) surfaces are drawn: a room model has a handful.
     for (std::size_t i = 0; i < model.walls.size() && order.size() < order.capacity(); ++i) {
       const Wall& w = model.walls[i];
       if (w.extent_uv_m.size() < 3) continue;
@@ -434,7 +421,7 @@ struct HeadsetRenderer::Impl {
         eye_viewport(output.width_px(), output.height_px(), eye, cam.width_px, cam.height_px);
     set_viewport(vp);
     glDisable(GL_BLEND);
-    if (!in.image.empty() && cam.width_px > 0) {
+    if (!in.image.empty() && in.image.format() == PixelFormat::kGray8 && cam.width_px > 0) {
       glUseProgram(camera_program);
       glActiveTexture(GL_TEXTURE0);
       glBindTexture(GL_TEXTURE_2D, image_tex[eye]);
@@ -471,16 +458,18 @@ struct HeadsetRenderer::Impl {
       }
     }
     if (options.hud) {
-      // Top-left of the eye, scaled with the viewport.
-      const double scale = std::min(1.0, 0.8 * vp.width / static_cast<double>(kHudWidthPx));
+      // Top-left of the eye, half its width at most; the second line only when degraded.
+      const double scale = std::min(1.0, 0.5 * vp.width / static_cast<double>(kHudWidthPx));
+      const int rows = frame.hud.degraded.empty() ? kHudLineHeightPx : kHudHeightPx;
       EyeViewport hud_vp{vp.x + vp.width / 40, vp.y + vp.height / 40,
-                         static_cast<int>(kHudWidthPx * scale),
-                         static_cast<int>(kHudHeightPx * scale)};
+                         static_cast<int>(kHudWidthPx * scale), static_cast<int>(rows * scale)};
       set_viewport(hud_vp);
       glUseProgram(texture_program);
       glActiveTexture(GL_TEXTURE0);
       glBindTexture(GL_TEXTURE_2D, hud_tex);
       glUniform1i(glGetUniformLocation(texture_program, "u_texture"), 0);
+      glUniform2f(glGetUniformLocation(texture_program, "u_tex_scale"), 1.0f,
+                  static_cast<float>(rows) / static_cast<float>(kHudHeightPx));
       glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
     }
   }

@@ -36,7 +36,7 @@ struct EyeCamera {
 };
 
 struct EyeInput {
-  Image image;  //!< kGray8 camera image (raw, distorted); empty = black background
+  Image image;  //!< kGray8 camera image (raw, distorted); empty or another format: black
   EyeCamera camera;
   SE3d T_world_cam = SE3d::Identity();
 };
@@ -72,7 +72,7 @@ struct RendererOptions {
 };
 
 struct RenderTiming {
-  TimeNs render_ns = 0;      //!< CPU time to issue and finish the frame (before present)
+  TimeNs render_ns = 0;      //!< from draw() until present() returned (kms: with the flip wait)
   TimeNs present_t_ns = 0;   //!< when it reached the display
   TimeNs latency_ns = -1;    //!< present_t_ns - capture_t_ns; -1 when unknown
   bool presented = false;    //!< false: the output failed (see DisplayOutput::last_error)
