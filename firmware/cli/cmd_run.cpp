@@ -4,8 +4,10 @@
 ///
 /// Today's pipeline: the board's source (replay on the sim board) feeds a collector that
 /// estimates gravity and gyro bias from the IMU while at rest, checks the estimate against the
-/// recording's ground truth when it has one, keeps the first stereo pair, and writes a summary
-/// under --out. Later modules (tracking, mapping, walls, rendering) hang off the same sink.
+/// recording's ground truth when it has one, keeps every 5th stereo pair, maps them (sparse
+/// stereo stand-in), finds the walls, draws the headset view of the kept pairs on the board's
+/// display (PNGs under --out/view) and writes a summary under --out. The supervisor (issue 9)
+/// replaces this sequence with modules on their own threads.
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -19,6 +21,7 @@
 #include "wallar/dsp/walls/room.hpp"
 #include "wallar/dsp/walls/room_check.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/headset_view.hpp"
 #include "wallar/firmware/report.hpp"
 #include "wallar/firmware/source_runner.hpp"
 
@@ -31,6 +34,8 @@ struct RunArgs {
   std::string out = "out";
   bool json = false;
   bool check = false;
+  bool no_view = false;
+  int view_every = 1;
   ReplayFlags flags;
 };
 
@@ -206,6 +211,33 @@ int run_run_command(const RunArgs& args) {
     cloud::write_ply_rgb(fs::path(args.out) / "sparse_map.ply", map,
                          firmware::surface_colours(map, room, kMapThresholdM));
     summary["walls"] = walls;
+    // The headset view of the kept pairs. The map's world is the first pair's left camera;
+    // without the tracker (issue 9 wires it in) the pose is known only while the IMU says the
+    // head is still, so a moving recording shows its first pair alone.
+    if (!args.no_view) {
+      firmware::HeadsetViewOptions view_options = firmware::view_options(board.display);
+      view_options.png_dir = fs::path(args.out) / "view";
+      view_options.png_every = args.view_every;
+      firmware::HeadsetView view(rig, view_options);
+      const SE3d T_world_body = rig.cams[0].T_body_cam.inverse();
+      display::HudState hud;
+      hud.tracking = still ? "at rest" : "first pair";
+      hud.fps = rig.cams[0].rate_hz;
+      hud.walls = static_cast<int>(room.model.walls.size());
+      for (std::size_t i = 0; i < (still ? sink.kept.size() : 1); ++i) {
+        if (!view.show(sink.kept[i], 0, T_world_body, true, &room.model, hud)) {
+          throw display::DisplayError("display: " + view.describe() + ": " + view.last_error());
+        }
+      }
+      const firmware::HeadsetViewStats& vs = view.stats();
+      summary["view"] = {{"display", view.describe()},
+                         {"frames", vs.frames},
+                         {"written", vs.written_files}};
+      std::snprintf(buf, sizeof buf, "headset view: %llu frames on %s, PNGs in %s/view/\n",
+                    static_cast<unsigned long long>(vs.frames), view.describe().c_str(),
+                    args.out.c_str());
+      text += buf;
+    }
   }
   if (!sink.first.left.image.empty()) {
     save_side_by_side(fs::path(args.out) / "first_stereo_pair.png", sink.first);
@@ -232,6 +264,10 @@ void add_run_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--out", args->out, "Folder for outputs")->capture_default_str();
   cmd->add_flag("--json", args->json, "Print the summary as JSON on stdout");
   cmd->add_flag("--check", args->check, "Only check the board file and exit");
+  cmd->add_flag("--no-view", args->no_view, "Do not draw the headset view");
+  cmd->add_option("--view-every", args->view_every, "Write every Nth drawn view as PNG")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   add_replay_flags(*cmd, args->flags);
   cmd->callback([args, &run] { run = [args] { return run_run_command(*args); }; });
 }

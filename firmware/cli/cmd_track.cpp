@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "percentiles.hpp"
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/cloud/cloud_io.hpp"
 #include "wallar/drivers/recording/euroc.hpp"
@@ -37,28 +38,6 @@ struct TrackArgs {
   bool json = false;
   std::string board;
 };
-
-struct Percentiles {
-  double mean_ms = 0, p50_ms = 0, p99_ms = 0, max_ms = 0;
-};
-Percentiles percentiles(std::vector<std::int64_t> v) {
-  Percentiles p;
-  if (v.empty()) return p;
-  std::sort(v.begin(), v.end());
-  double sum = 0;
-  for (std::int64_t x : v) sum += static_cast<double>(x);
-  const auto at = [&](double q) {
-    return static_cast<double>(v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))]) * 1e-6;
-  };
-  p.mean_ms = sum / static_cast<double>(v.size()) * 1e-6;
-  p.p50_ms = at(0.5);
-  p.p99_ms = at(0.99);
-  p.max_ms = static_cast<double>(v.back()) * 1e-6;
-  return p;
-}
-nlohmann::json to_json(const Percentiles& p) {
-  return {{"mean_ms", p.mean_ms}, {"p50_ms", p.p50_ms}, {"p99_ms", p.p99_ms}, {"max_ms", p.max_ms}};
-}
 
 int run_track(const TrackArgs& a) {
   const recording::EurocRecording rec = recording::read_euroc(a.recording);

@@ -32,6 +32,7 @@ void add_walls_command(CLI::App& app, std::function<int()>& run);
 void add_eval_command(CLI::App& app, std::function<int()>& run);
 void add_imu_command(CLI::App& app, std::function<int()>& run);
 void add_track_command(CLI::App& app, std::function<int()>& run);
+void add_render_command(CLI::App& app, std::function<int()>& run);
 void add_calibrate_command(CLI::App& app, std::function<int()>& run);
 void add_calibrate_stereo_commands(CLI::App& calibrate, std::function<int()>& run);
 /// `wallar eval real`, added to the `eval` subcommand.

@@ -48,6 +48,7 @@ int main(int argc, char** argv) {
   add_eval_command(app, run);
   add_imu_command(app, run);
   add_track_command(app, run);
+  add_render_command(app, run);
   add_calibrate_command(app, run);
 
   try {

@@ -3,7 +3,11 @@
 /// @brief Stats reports.
 #include "wallar/firmware/report.hpp"
 
+#include <cmath>
 #include <cstdio>
+#include <fstream>
+
+#include "wallar/core/error.hpp"
 
 #include "wallar/dsp/walls/room_check.hpp"
 
@@ -110,6 +114,77 @@ nlohmann::json to_json(const dsp::RoomResult& r) {
                         {"extent", extent}});
   }
   return {{"surfaces", surfaces}, {"rounds", r.rounds}, {"points", r.points}};
+}
+
+WallModel walls_from_json(const nlohmann::json& j, const std::string& where) {
+  if (!j.is_object() || !j.contains("surfaces") || !j["surfaces"].is_array()) {
+    throw_input_error(where, 0, "no \"surfaces\" array (expected the output of wallar walls)");
+  }
+  WallModel model;
+  std::size_t k = 0;
+  for (const nlohmann::json& s : j["surfaces"]) {
+    const std::string at = "surface " + std::to_string(k++);
+    const auto fail = [&](const std::string& what) { throw_input_error(where, 0, at + ": " + what); };
+    const auto vec3 = [&](const nlohmann::json& v, const char* name) {
+      if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() ||
+          !v[2].is_number()) {
+        fail(std::string(name) + " is not [x, y, z]");
+      }
+      const Eigen::Vector3d out(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
+      if (!out.allFinite()) fail(std::string(name) + " is not finite");
+      return out;
+    };
+    if (!s.is_object()) fail("not an object");
+    Wall w;
+    if (!s.contains("id") || !s["id"].is_number_unsigned()) fail("no unsigned \"id\"");
+    w.id = s["id"].get<std::uint32_t>();
+    const std::string kind = s.value("kind", "wall");
+    if (kind == "floor") {
+      w.kind = SurfaceKind::kFloor;
+    } else if (kind == "ceiling") {
+      w.kind = SurfaceKind::kCeiling;
+    } else if (kind != "wall") {
+      fail("unknown kind '" + kind + "' (wall, floor, ceiling)");
+    }
+    if (!s.contains("normal") || !s.contains("d") || !s["d"].is_number()) fail("no normal and d");
+    w.plane.n = vec3(s["normal"], "normal");
+    w.plane.d = s["d"].get<double>();
+    if (std::abs(w.plane.n.norm() - 1.0) > 1e-3) fail("normal is not a unit vector");
+    if (!s.contains("extent") || !s["extent"].is_array() || s["extent"].size() < 3) {
+      fail("extent needs at least 3 corners");
+    }
+    std::vector<Eigen::Vector3d> corners;
+    for (const nlohmann::json& c : s["extent"]) corners.push_back(vec3(c, "extent corner"));
+    for (const Eigen::Vector3d& c : corners) {
+      if (std::abs(w.plane.signed_distance(c)) > 0.05) fail("extent corner off the plane by > 5 cm");
+    }
+    // Basis in the plane: u along the first edge, v = n x u (u x v = n).
+    w.origin = corners[0];
+    Eigen::Vector3d u = corners[1] - corners[0];
+    u -= u.dot(w.plane.n) * w.plane.n;
+    if (u.norm() < 1e-6) fail("the first two extent corners coincide");
+    w.u = u.normalized();
+    w.v = w.plane.n.cross(w.u);
+    for (const Eigen::Vector3d& c : corners) {
+      w.extent_uv_m.emplace_back((c - w.origin).dot(w.u), (c - w.origin).dot(w.v));
+    }
+    w.inliers = s.value("inliers", 0u);
+    w.backliers = s.value("backliers", 0u);
+    model.walls.push_back(std::move(w));
+  }
+  return model;
+}
+
+WallModel read_walls_json(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw_input_error(path.string(), 0, "cannot open the walls file");
+  nlohmann::json j;
+  try {
+    in >> j;
+  } catch (const nlohmann::json::exception& e) {
+    throw_input_error(path.string(), 0, std::string("not JSON: ") + e.what());
+  }
+  return walls_from_json(j, path.string());
 }
 
 std::string to_text(const dsp::RoomResult& r) {

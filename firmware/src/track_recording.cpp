@@ -93,6 +93,8 @@ TrackRecordingResult track_recording(const recording::EurocRecording& rec,
   }
   const SE3d& T_body_rect = system->tracker().T_body_rect();
   const SE3d T_out_tracker = R_align * T_body_rect;  // tracker world -> output world
+  out.T_world_tracker = T_out_tracker;
+  out.T_body_rect = T_body_rect;
   out.poses.reserve(out.frames.size());
   for (const dsp::TrackResult& r : out.frames) {
     out.poses.push_back(StampedPose{r.t_ns, T_out_tracker * r.T_world_cam * T_body_rect.inverse()});

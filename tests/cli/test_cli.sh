@@ -108,6 +108,10 @@ run_sim)
   [ -s "$tmp/out_dir/run_summary.json" ] || fail "no run_summary.json"
   [ -s "$tmp/out_dir/first_stereo_pair.png" ] || fail "no first_stereo_pair.png"
   [ -s "$tmp/out_dir/sparse_map.ply" ] || fail "no sparse_map.ply"
+  # The headset view of the 8 kept pairs (every 5th of 40), drawn on the board's display size.
+  [ "$(json "d['view']['frames']")" = 8 ] || fail "view frames"
+  [ -s "$tmp/out_dir/view/view_000000.png" ] || fail "no view PNG"
+  python3 -c "import struct,sys; b=open('$tmp/out_dir/view/view_000007.png','rb').read(24); sys.exit(0 if struct.unpack('>II', b[16:24]) == (1280, 720) else 1)" || fail "view size"
   # The real scene: a floor under the camera whose free 3-D fit agrees with ground-truth gravity.
   python3 - "$tmp/out_dir/walls.json" <<'PY' || fail "walls.json of the real recording"
 import json, sys
@@ -493,6 +497,35 @@ track_bad_input)
   run track "$tmp/size" --out "$tmp/size.txt"; expect_rc 2; one_err_line
   expect_err "expected 640x480"
   [ ! -e "$tmp/size.txt" ] || fail "a trajectory was written for a failed run"
+  ;;
+render)
+  run render "$rec" --out "$tmp/view" --every 13 --width 640 --height 240 --json; expect_rc 0
+  [ "$(json "d['frames']")" = 40 ] || fail "frames"
+  [ "$(json "d['written']")" = 4 ] || fail "written (0, 13, 26, 39)"
+  for n in 000000 000013 000026 000039; do [ -s "$tmp/view/view_$n.png" ] || fail "view_$n.png"; done
+  python3 -c "import struct,sys; b=open('$tmp/view/view_000039.png','rb').read(24); sys.exit(0 if struct.unpack('>II', b[16:24]) == (640, 240) else 1)" || fail "view size"
+  python3 -c "import json,sys; d=json.load(open('$tmp/view/walls.json')); sys.exit(0 if any(s['kind']=='floor' for s in d['surfaces']) else 1)" || fail "no floor in walls.json"
+  # Its walls.json renders again as given (--walls), the same number of surfaces.
+  run render "$rec" --out "$tmp/again" --walls "$tmp/view/walls.json" --every 40 --json; expect_rc 0
+  [ "$(json "d['walls']")" = "$(python3 -c "import json; print(len(json.load(open('$tmp/view/walls.json'))['surfaces']))")" ] || fail "walls given"
+  [ "$(json "d['written']")" = 1 ] || fail "written with --walls"
+  # Real time (4x here): tracking on the replay thread, the renderer on its own drawing the
+  # newest frame; every posted frame is drawn or counted as skipped, latencies are measured.
+  run render "$rec" --out "$tmp/rt" --walls "$tmp/view/walls.json" --realtime --rate 4 --json
+  expect_rc 0
+  [ "$(json "d['posted']")" = 40 ] || fail "posted"
+  [ "$(json "d['drawn'] + d['skipped']")" = 40 ] || fail "drawn + skipped"
+  python3 -c "import json,sys; d=json.load(open('$tmp/out')); l=d['camera_to_display_latency']; sys.exit(0 if 0 < l['p50_ms'] <= l['max_ms'] and d['tracking_time']['p50_ms'] > 0 else 1)" || fail "latency: $(cat "$tmp/out")"
+  ;;
+render_bad_input)
+  run render "$tmp/nowhere" --out "$tmp/o"; expect_rc 2; one_err_line
+  printf '{"surfaces": [{"id": 1, "normal": [0, 0, 2], "d": 1, "extent": [[0,0,0],[1,0,0],[1,1,0]]}]}' >"$tmp/w.json"
+  run render "$rec" --out "$tmp/o" --walls "$tmp/w.json"; expect_rc 2; one_err_line
+  expect_err "surface 0: normal is not a unit vector"
+  printf '{"surfaces": [' >"$tmp/cut.json"
+  run render "$rec" --out "$tmp/o" --walls "$tmp/cut.json"; expect_rc 2; one_err_line
+  expect_err "cut.json: not JSON"
+  run render "$rec" --out "$tmp/o" --lens 0.1; expect_rc 2; expect_err "lens"
   ;;
 *)
   fail "unknown case" ;;

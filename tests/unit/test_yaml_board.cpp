@@ -74,6 +74,9 @@ TEST(Board, TheShippedBoardFilesLoad) {
   EXPECT_EQ(pi.cameras[1].usb_id, "32e4:9750");
   EXPECT_EQ(pi.cameras[0].pixel_format, "YUYV");
   EXPECT_EQ(pi.display.connector, "HDMI-A-1");
+  EXPECT_DOUBLE_EQ(pi.display.lens_k1, 0.22);  // the headset's lens pre-distortion
+  EXPECT_DOUBLE_EQ(pi.display.lens_k2, 0.24);
+  EXPECT_EQ(sim.display.lens_k1, 0.0);
   ASSERT_TRUE(pi.exit_button);
   EXPECT_TRUE(pi.exit_button->active_low);
 

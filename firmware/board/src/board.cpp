@@ -139,12 +139,14 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
   }
 
   if (const YamlNode* d = root.find("display")) {
-    d->check_keys({"backend", "card", "connector", "width", "height"});
+    d->check_keys({"backend", "card", "connector", "width", "height", "lens_k1", "lens_k2"});
     b.display.backend = one_of(d->at("backend"), {"headless", "kms"});
     b.display.card = d->get_string("card", b.display.card);
     b.display.connector = d->get_string("connector", "");
     if (const YamlNode* w = d->find("width")) b.display.width_px = positive_int(*w, 16384);
     if (const YamlNode* h = d->find("height")) b.display.height_px = positive_int(*h, 16384);
+    b.display.lens_k1 = d->get_double("lens_k1", 0.0);
+    b.display.lens_k2 = d->get_double("lens_k2", 0.0);
   }
 
   if (const YamlNode* t = root.find("tracking")) {

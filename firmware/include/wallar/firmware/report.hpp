@@ -6,6 +6,7 @@
 #pragma once
 
 #include <array>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -25,6 +26,12 @@ nlohmann::json to_json(const source::ReplayStats& s);
 nlohmann::json to_json(const dsp::RoomResult& r);
 /// One line per surface.
 std::string to_text(const dsp::RoomResult& r);
+/// Reads that schema back (id, kind, normal, d and the extent's world corners; the rest is
+/// optional) into a wall model; throws InputError "WHERE: surface K: ..." for what is missing
+/// or implausible (non-unit normal, corners off the plane by > 5 cm, fewer than 3 corners).
+WallModel walls_from_json(const nlohmann::json& j, const std::string& where);
+/// The same from a file.
+WallModel read_walls_json(const std::filesystem::path& path);
 /// A colour per point: that of the first surface (in order of discovery) within threshold_m,
 /// gray for points on none.
 std::vector<std::array<std::uint8_t, 3>> surface_colours(const PointCloud& cloud,

@@ -37,6 +37,11 @@ struct FloorAgainstGravity {
 struct TrackRecordingResult {
   std::vector<dsp::TrackResult> frames;
   std::vector<StampedPose> poses;  //!< T_world_body, one per frame
+  /// The tracker's own world (its first rectified left camera) into this result's world, and
+  /// the body-to-rectified-camera transform: T_world_body = T_world_tracker * T_tracker_cam *
+  /// T_body_rect^-1 for any TrackResult of a tracker started on the same first frame.
+  SE3d T_world_tracker = SE3d::Identity();
+  SE3d T_body_rect = SE3d::Identity();
   PointCloud map;                  //!< world frame, observations = key-frames that saw it
   std::vector<float> sigma_m;      //!< per map point
   std::vector<Eigen::Vector3d> keyframe_centres;  //!< world frame (of the body)

@@ -50,6 +50,9 @@ struct DisplayConfig {
   std::string connector;  //!< "HDMI-A-1", empty = first connected
   int width_px = 1280;
   int height_px = 720;
+  /// Lens pre-distortion of the headset's optics, r (1 + k1 r^2 + k2 r^4); 0, 0 = none.
+  double lens_k1 = 0.0;
+  double lens_k2 = 0.0;
 };
 
 /// The tracker's fixed-capacity storage, allocated once at start-up from these.

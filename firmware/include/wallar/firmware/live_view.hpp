@@ -1,0 +1,80 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file live_view.hpp
+/// @brief The visualization thread (thesis fig. 3.3): draws the newest frame and pose the
+/// tracking thread posts, with the wall model, on the board's display. The tracking thread
+/// never waits for it (a newest-only mailbox: frames the renderer could not draw in time are
+/// skipped and counted), and it never waits for tracking (it sleeps until a post arrives).
+///
+/// A lost output (GPU context reset, display unplugged, flip timeout) is reported once on
+/// stderr and re-opened every half second until it works; frames posted meanwhile are skipped.
+///
+/// Latency: each post carries the CLOCK_MONOTONIC time its camera frame was captured (live
+/// V4L2: the driver's time stamp; replay: when the replay delivered it); the renderer records
+/// present time minus that, the camera-to-display latency.
+///
+/// Threading: post() from one thread (tracking); the constructor, stop() and the destructor
+/// from the owning thread; the display's GL context lives on the internal thread.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <string>
+#include <thread>
+
+#include "wallar/core/mailbox.hpp"
+#include "wallar/core/stereo_frame.hpp"
+#include "wallar/dsp/tracking/tracker.hpp"
+#include "wallar/firmware/headset_view.hpp"
+
+namespace wallar::firmware {
+
+struct ViewPost {
+  StereoFrame frame;
+  TimeNs capture_t_ns = 0;
+  SE3d T_world_body = SE3d::Identity();
+  dsp::TrackingState state = dsp::TrackingState::kInitialising;
+};
+
+struct LiveViewStats {
+  HeadsetViewStats view;         //!< frames drawn, render times, latencies (every output opened)
+  std::uint64_t posted = 0;      //!< frames the tracking side posted
+  std::uint64_t skipped = 0;     //!< posted but overwritten before the renderer took them
+  std::uint64_t losses = 0;      //!< times the output failed
+  std::uint64_t reopens = 0;     //!< times it was opened again
+  std::string display;
+};
+
+class LiveView {
+ public:
+  /// Starts the thread, which opens the display; throws DisplayError (one line) if it cannot.
+  /// `walls` is the model drawn (fixed for the view's life), `fps` the HUD's camera rate.
+  LiveView(const RigCalibration& rig, const HeadsetViewOptions& options, WallModel walls,
+           double fps);
+  ~LiveView();
+  LiveView(const LiveView&) = delete;
+  LiveView& operator=(const LiveView&) = delete;
+
+  /// Hands the renderer the newest frame; never blocks, never allocates.
+  void post(ViewPost post);
+  /// Draws what is pending, stops the thread and returns the statistics (once).
+  LiveViewStats stop();
+  /// Posts taken and drawn (or failed to draw) so far; any thread.
+  [[nodiscard]] std::uint64_t attempts() const { return attempts_.load(std::memory_order_acquire); }
+
+ private:
+  void loop(const RigCalibration& rig, const HeadsetViewOptions& options);
+
+  WallModel walls_;
+  double fps_;
+  NewestMailbox<ViewPost> mailbox_;
+  std::atomic<std::uint32_t> wakeups_{0};
+  std::atomic<std::uint64_t> posted_{0};
+  std::atomic<std::uint64_t> attempts_{0};
+  std::atomic<bool> stop_{false};
+  std::atomic<int> ready_{0};  // 0 starting, 1 running, -1 failed (error_ set)
+  std::string error_;
+  LiveViewStats stats_;  // written by the thread, read after join
+  std::thread thread_;
+};
+
+}  // namespace wallar::firmware
