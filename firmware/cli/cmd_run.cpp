@@ -243,6 +243,7 @@ int run_run_command(const RunArgs& args) {
     save_side_by_side(fs::path(args.out) / "first_stereo_pair.png", sink.first);
     summary["outputs"] = {"run_summary.json", "first_stereo_pair.png", "walls.json",
                           "sparse_map.ply"};
+    if (summary.contains("view")) summary["outputs"].push_back("view/");
   }
   std::ofstream(fs::path(args.out) / "run_summary.json") << summary.dump(2) << "\n";
   if (args.json) {
