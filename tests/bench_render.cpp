@@ -133,8 +133,8 @@ void BM_OpenCvCompositeStereoFrame(benchmark::State& state) {
       }
       cv::addWeighted(roi, 0.65, fill, 0.35, 0.0, roi);
     }
-    cv::putText(canvas, "tracking  20.0 fps  6 walls", cv::Point(20, 40),
-                cv::FONT_HERSHEY_SIMPLEX, 0.8, cv::Scalar(255, 255, 255), 2, cv::LINE_AA);
+    cv::putText(canvas, "tracking  20.0 fps  6 walls", cv::Point(20, 40), cv::FONT_HERSHEY_SIMPLEX,
+                0.8, cv::Scalar(255, 255, 255), 2, cv::LINE_AA);
     benchmark::DoNotOptimize(canvas.data);
   }
   state.SetLabel("OpenCV, 1 thread, CPU");

@@ -58,12 +58,13 @@ StereoFrame load_pair(const recording::EurocRecording& rec, TimeNs t_ns, std::ui
   CameraFrame* out[2] = {&f.left, &f.right};
   for (std::size_t c = 0; c < 2; ++c) {
     const auto& frames = rec.cams[c].frames;
-    const auto it = std::lower_bound(frames.begin(), frames.end(), t_ns - 2 * kNsPerMs,
-                                     [](const recording::FrameEntry& e, TimeNs t) { return e.t_ns < t; });
+    const auto it =
+        std::lower_bound(frames.begin(), frames.end(), t_ns - 2 * kNsPerMs,
+                         [](const recording::FrameEntry& e, TimeNs t) { return e.t_ns < t; });
     if (it == frames.end() || std::llabs(it->t_ns - t_ns) > 2 * kNsPerMs) continue;
     out[c]->t_ns = it->t_ns;
-    out[c]->image = recording::load_png_gray(rec.cams[c].image_path(*it), rec.cams[c].calib.width_px,
-                                             rec.cams[c].calib.height_px);
+    out[c]->image = recording::load_png_gray(
+        rec.cams[c].image_path(*it), rec.cams[c].calib.width_px, rec.cams[c].calib.height_px);
   }
   return f;
 }
@@ -71,11 +72,11 @@ StereoFrame load_pair(const recording::EurocRecording& rec, TimeNs t_ns, std::ui
 /// Replays the recording at `rate` through the tracking system (mapping on its thread, as on
 /// the device) while the visualization thread draws the newest frame: the end-to-end latency.
 int run_realtime(const RenderArgs& a, const recording::EurocRecording& rec,
-                 const firmware::BoardConfig& board,
-                 const firmware::TrackRecordingResult& offline, const WallModel& walls,
-                 const firmware::HeadsetViewOptions& view_options) {
+                 const firmware::BoardConfig& board, const firmware::TrackRecordingResult& offline,
+                 const WallModel& walls, const firmware::HeadsetViewOptions& view_options) {
   const RigCalibration rig = rec.rig();
-  firmware::TrackingSystem system(rig, firmware::tracking_options(board.tracking), &render_clock_ns);
+  firmware::TrackingSystem system(rig, firmware::tracking_options(board.tracking),
+                                  &render_clock_ns);
   firmware::LiveView live(rig, view_options, walls, rig.cams[0].rate_hz);
   struct Sink final : source::SensorSink {
     Sink(firmware::TrackingSystem& s, firmware::LiveView& v, const SE3d& world, const SE3d& rect)
@@ -86,8 +87,8 @@ int run_realtime(const RenderArgs& a, const recording::EurocRecording& rec,
     void on_stereo(const StereoFrame& frame) override {
       const dsp::TrackResult r = system.on_stereo(frame);
       if (track_ns.size() < track_ns.capacity()) track_ns.push_back(r.times.total_ns);
-      view.post({frame, frame.left.publish_t_ns, T_world_tracker * r.T_world_cam * T_rect_body,
-                 r.state});
+      view.post(
+          {frame, frame.left.publish_t_ns, T_world_tracker * r.T_world_cam * T_rect_body, r.state});
     }
     firmware::TrackingSystem& system;
     firmware::LiveView& view;
@@ -96,7 +97,8 @@ int run_realtime(const RenderArgs& a, const recording::EurocRecording& rec,
   } sink(system, live, offline.T_world_tracker, offline.T_body_rect);
   source::ReplayOptions replay;
   replay.rate = a.rate;
-  const source::ReplayStats replay_stats = source::ReplaySource(rec, replay).run(sink, stop_requested());
+  const source::ReplayStats replay_stats =
+      source::ReplaySource(rec, replay).run(sink, stop_requested());
   system.finish();
   const firmware::LiveViewStats s = live.stop();
   const Percentiles render = percentiles(s.view.render_ns);
@@ -120,11 +122,12 @@ int run_realtime(const RenderArgs& a, const recording::EurocRecording& rec,
   if (a.json) {
     std::cout << summary.dump(2) << "\n";
   } else {
-    std::printf("wallar render --realtime: %llu frames posted at %.2gx, %llu drawn on %s, %llu "
-                "skipped (newer frame waiting)\n",
-                static_cast<unsigned long long>(s.posted), a.rate,
-                static_cast<unsigned long long>(s.view.frames), s.display.c_str(),
-                static_cast<unsigned long long>(s.skipped));
+    std::printf(
+        "wallar render --realtime: %llu frames posted at %.2gx, %llu drawn on %s, %llu "
+        "skipped (newer frame waiting)\n",
+        static_cast<unsigned long long>(s.posted), a.rate,
+        static_cast<unsigned long long>(s.view.frames), s.display.c_str(),
+        static_cast<unsigned long long>(s.skipped));
     std::printf("  tracking per frame: p50 %.2f ms, p99 %.2f; render: p50 %.2f ms, p99 %.2f\n",
                 track.p50_ms, track.p99_ms, render.p50_ms, render.p99_ms);
     std::printf("  camera-to-display latency: p50 %.2f ms, p99 %.2f, max %.2f\n", latency.p50_ms,
@@ -162,7 +165,8 @@ int run_render(const RenderArgs& a) {
     const dsp::RoomResult room = estimator.estimate(track.map, config);
     walls = room.model;
     walls_json = firmware::to_json(room);
-    walls_json["frame"] = "world: the first body pose turned so z is up (wallar track --gravity-aligned)";
+    walls_json["frame"] =
+        "world: the first body pose turned so z is up (wallar track --gravity-aligned)";
   }
   std::error_code ec;
   fs::create_directories(a.out, ec);
@@ -205,12 +209,9 @@ int run_render(const RenderArgs& a) {
   }
   const firmware::HeadsetViewStats& s = view.stats();
   const Percentiles render = percentiles(s.render_ns);
-  nlohmann::json summary = {{"recording", a.recording},
-                            {"display", view.describe()},
-                            {"frames", s.frames},
-                            {"written", s.written},
-                            {"walls", walls.walls.size()},
-                            {"render_time", to_json(render)},
+  nlohmann::json summary = {{"recording", a.recording},    {"display", view.describe()},
+                            {"frames", s.frames},          {"written", s.written},
+                            {"walls", walls.walls.size()}, {"render_time", to_json(render)},
                             {"outputs", s.written_files}};
   std::ofstream(fs::path(a.out) / "render_summary.json") << summary.dump(2) << "\n";
   if (a.json) {
@@ -254,8 +255,7 @@ void add_render_command(CLI::App& app, std::function<int()>& run) {
       ->check(CLI::Range(64, 8192));
   cmd->add_option("--height", args->height_px, "display height in pixels")
       ->check(CLI::Range(64, 8192));
-  cmd->add_option("--lens", args->lens, "lens pre-distortion k1 k2 (default: off)")
-      ->expected(2);
+  cmd->add_option("--lens", args->lens, "lens pre-distortion k1 k2 (default: off)")->expected(2);
   cmd->add_flag("--json", args->json, "print the summary as JSON");
   cmd->callback([args, &run] { run = [args] { return run_render(*args); }; });
 }

@@ -46,7 +46,10 @@ HeadsetView::HeadsetView(const RigCalibration& rig, const HeadsetViewOptions& op
   if (options_.png_every < 1) options_.png_every = 1;
   output_ = options_.open(options_.display);
   renderer_ = std::make_unique<display::HeadsetRenderer>(*output_, options_.renderer);
-  if (!options_.png_dir.empty()) std::filesystem::create_directories(options_.png_dir);
+  if (!options_.png_dir.empty()) {
+    std::filesystem::create_directories(options_.png_dir);
+    capture_rgba_.resize(static_cast<std::size_t>(output_->width_px()) * output_->height_px() * 4);
+  }
   // Per-frame figures for about 15 minutes at 30 Hz; later frames are counted, not kept.
   stats_.render_ns.reserve(kKeptFrames);
   stats_.latency_ns.reserve(kKeptFrames);
@@ -72,7 +75,10 @@ bool HeadsetView::show(const StereoFrame& frame, TimeNs capture_t_ns, const SE3d
     in.image = cams[eye]->image;
     in.T_world_cam = T_world_body * rig_.cams[eye].T_body_cam;
   }
-  const display::RenderTiming t = renderer_->draw(view);
+  const auto every = static_cast<std::uint64_t>(options_.png_every);
+  const bool png_due = !options_.png_dir.empty() && stats_.frames % every == 0;
+  const display::RenderTiming t = renderer_->draw(
+      view, png_due ? std::span<std::uint8_t>(capture_rgba_) : std::span<std::uint8_t>());
   ++stats_.frames;
   if (!t.presented) {
     ++stats_.present_failures;
@@ -83,12 +89,13 @@ bool HeadsetView::show(const StereoFrame& frame, TimeNs capture_t_ns, const SE3d
   if (t.latency_ns >= 0 && stats_.latency_ns.size() < kKeptFrames) {
     stats_.latency_ns.push_back(t.latency_ns);
   }
-  if (!options_.png_dir.empty() && (stats_.frames - 1) % options_.png_every == 0) {
+  if (png_due) {
     char name[64];
     std::snprintf(name, sizeof name, "view_%06llu.png",
                   static_cast<unsigned long long>(stats_.frames - 1));
     const std::filesystem::path path = options_.png_dir / name;
-    recording::save_png(path, display::read_frame_rgb(*output_));
+    recording::save_png(
+        path, display::rgba_to_rgb(capture_rgba_, output_->width_px(), output_->height_px()));
     stats_.written_files.push_back(path.string());
     ++stats_.written;
   }

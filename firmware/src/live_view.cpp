@@ -106,8 +106,7 @@ void LiveView::loop(const RigCalibration& rig, const HeadsetViewOptions& options
       if (!shown) {
         ++stats_.losses;
         std::fprintf(stderr, "wallar: display lost: %s; re-opening every %lld ms\n",
-                     view->last_error().c_str(),
-                     static_cast<long long>(kReopenPeriod.count()));
+                     view->last_error().c_str(), static_cast<long long>(kReopenPeriod.count()));
         accumulate(stats_.view, view->stats());
         view.reset();
       }

@@ -124,7 +124,9 @@ WallModel walls_from_json(const nlohmann::json& j, const std::string& where) {
   std::size_t k = 0;
   for (const nlohmann::json& s : j["surfaces"]) {
     const std::string at = "surface " + std::to_string(k++);
-    const auto fail = [&](const std::string& what) { throw_input_error(where, 0, at + ": " + what); };
+    const auto fail = [&](const std::string& what) {
+      throw_input_error(where, 0, at + ": " + what);
+    };
     const auto vec3 = [&](const nlohmann::json& v, const char* name) {
       if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() ||
           !v[2].is_number()) {
@@ -156,7 +158,8 @@ WallModel walls_from_json(const nlohmann::json& j, const std::string& where) {
     std::vector<Eigen::Vector3d> corners;
     for (const nlohmann::json& c : s["extent"]) corners.push_back(vec3(c, "extent corner"));
     for (const Eigen::Vector3d& c : corners) {
-      if (std::abs(w.plane.signed_distance(c)) > 0.05) fail("extent corner off the plane by > 5 cm");
+      if (std::abs(w.plane.signed_distance(c)) > 0.05)
+        fail("extent corner off the plane by > 5 cm");
     }
     // Basis in the plane: u along the first edge, v = n x u (u x v = n).
     w.origin = corners[0];

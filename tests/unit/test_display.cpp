@@ -149,20 +149,20 @@ TEST(Display, WallCornersLandOnTheirProjectionInBothEyes) {
     const Wall& w = model.walls[0];
     std::vector<cv::Point> expected_poly;
     for (std::size_t k = 0; k < w.extent_uv_m.size(); ++k) {
-      const Eigen::Vector2d uv = project(frame.eyes[eye].camera, frame.eyes[eye].T_world_cam,
-                                         w.corner(k));
+      const Eigen::Vector2d uv =
+          project(frame.eyes[eye].camera, frame.eyes[eye].T_world_cam, w.corner(k));
       expected_poly.emplace_back(static_cast<int>(std::lround(uv.x() * 16.0)),
                                  static_cast<int>(std::lround(uv.y() * 16.0)));
       // The rendered corner, found by sub-pixel corner refinement started 3 px away.
-      std::vector<cv::Point2f> corner{
-          cv::Point2f(static_cast<float>(uv.x() + eye * kW + 3.0), static_cast<float>(uv.y() - 3.0))};
+      std::vector<cv::Point2f> corner{cv::Point2f(static_cast<float>(uv.x() + eye * kW + 3.0),
+                                                  static_cast<float>(uv.y() - 3.0))};
       cv::cornerSubPix(gray, corner, cv::Size(6, 6), cv::Size(-1, -1),
                        cv::TermCriteria(cv::TermCriteria::EPS | cv::TermCriteria::COUNT, 50, 0.01));
       const double du = corner[0].x - eye * kW - uv.x();
       const double dv = corner[0].y - uv.y();
       EXPECT_LT(std::hypot(du, dv), 1.0)
-          << "eye " << eye << " corner " << k << " expected (" << uv.transpose()
-          << ") rendered (" << corner[0].x - eye * kW << ", " << corner[0].y << ")";
+          << "eye " << eye << " corner " << k << " expected (" << uv.transpose() << ") rendered ("
+          << corner[0].x - eye * kW << ", " << corner[0].y << ")";
     }
     // The filled region is the projected polygon (IoU), not just its corners; GL's and OpenCV's
     // rasterisation rules differ by up to a pixel along an edge (~0.8 % of this area each).
@@ -222,8 +222,9 @@ TEST(Display, TheCameraImageIsUndistortedInTheShader) {
   Image img = Image::allocate(kW, kH, PixelFormat::kGray8);
   cv::Mat m(kH, kW, CV_8U, img.mutable_data(), img.stride_bytes());
   m.setTo(0);
-  cv::circle(m, cv::Point(static_cast<int>(std::lround(raw.x * 16)),
-                          static_cast<int>(std::lround(raw.y * 16))),
+  cv::circle(m,
+             cv::Point(static_cast<int>(std::lround(raw.x * 16)),
+                       static_cast<int>(std::lround(raw.y * 16))),
              3 * 16, 255, cv::FILLED, cv::LINE_AA, 4);
   RendererOptions o;
   o.hud = false;

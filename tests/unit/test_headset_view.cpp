@@ -147,8 +147,8 @@ TEST(LiveView, DrawsTheNewestFrameAndCountsTheSkippedOnes) {
   for (int i = 0; i < 60; ++i) {
     firmware::ViewPost post;
     post.frame.t_ns = i;
-    post.frame.left.image = Image::allocate(rig.cams[0].width_px, rig.cams[0].height_px,
-                                            PixelFormat::kGray8);
+    post.frame.left.image =
+        Image::allocate(rig.cams[0].width_px, rig.cams[0].height_px, PixelFormat::kGray8);
     post.frame.right.image = post.frame.left.image;
     post.capture_t_ns = monotonic_now_ns();
     post.state = dsp::TrackingState::kTracking;
@@ -195,7 +195,8 @@ TEST(LiveView, ALostDisplayIsReopenedAndDrawingGoesOn) {
   options.display.width_px = 64;
   options.display.height_px = 32;
   std::atomic<int> opens{0};
-  options.open = [&opens](const display::DisplayOptions& d) -> std::unique_ptr<display::DisplayOutput> {
+  options.open =
+      [&opens](const display::DisplayOptions& d) -> std::unique_ptr<display::DisplayOutput> {
     // The first output fails at its third frame; the second never does.
     return std::make_unique<FlakyOutput>(display::open_display(d), ++opens == 1 ? 3 : -1);
   };
@@ -203,8 +204,8 @@ TEST(LiveView, ALostDisplayIsReopenedAndDrawingGoesOn) {
   for (std::uint64_t i = 0; i < 6; ++i) {
     firmware::ViewPost post;
     post.frame.t_ns = static_cast<TimeNs>(i);
-    post.frame.left.image = Image::allocate(rig.cams[0].width_px, rig.cams[0].height_px,
-                                            PixelFormat::kGray8);
+    post.frame.left.image =
+        Image::allocate(rig.cams[0].width_px, rig.cams[0].height_px, PixelFormat::kGray8);
     post.frame.right.image = post.frame.left.image;
     post.state = dsp::TrackingState::kTracking;
     live.post(std::move(post));

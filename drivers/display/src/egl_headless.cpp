@@ -37,25 +37,37 @@ class HeadlessOutput final : public DisplayOutput {
     auto get_platform_display = reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(
         eglGetProcAddress("eglGetPlatformDisplayEXT"));
     if (get_platform_display == nullptr) {
-      throw DisplayError("display: headless: EGL has no eglGetPlatformDisplayEXT (Mesa's libEGL "
-                         "is needed: apt install libegl-mesa0)");
+      throw DisplayError(
+          "display: headless: EGL has no eglGetPlatformDisplayEXT (Mesa's libEGL "
+          "is needed: apt install libegl-mesa0)");
     }
     EGLDisplay display =
         get_platform_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
     EGLint major = 0, minor = 0;
     if (display == EGL_NO_DISPLAY || eglInitialize(display, &major, &minor) == EGL_FALSE) {
-      throw DisplayError("display: headless: " +
-                         egl_error_text("EGL surfaceless platform initialisation") +
-                         " (apt install libegl-mesa0 libgl1-mesa-dri)");
+      throw DisplayError(
+          "display: headless: " + egl_error_text("EGL surfaceless platform initialisation") +
+          " (apt install libegl-mesa0 libgl1-mesa-dri)");
     }
     egl_.display = display;
     // Mesa's surfaceless display is one per process: initialised once, never terminated
     // (terminating unloads llvmpipe, whose allocations LeakSanitizer then cannot attribute).
     egl_.terminate = false;
     fail_unless(eglBindAPI(EGL_OPENGL_ES_API), "eglBindAPI(OpenGL ES)");
-    const EGLint config_attribs[] = {EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_RENDERABLE_TYPE,
-                                     EGL_OPENGL_ES3_BIT, EGL_RED_SIZE, 8, EGL_GREEN_SIZE, 8,
-                                     EGL_BLUE_SIZE, 8, EGL_ALPHA_SIZE, 8, EGL_DEPTH_SIZE, 16,
+    const EGLint config_attribs[] = {EGL_SURFACE_TYPE,
+                                     EGL_PBUFFER_BIT,
+                                     EGL_RENDERABLE_TYPE,
+                                     EGL_OPENGL_ES3_BIT,
+                                     EGL_RED_SIZE,
+                                     8,
+                                     EGL_GREEN_SIZE,
+                                     8,
+                                     EGL_BLUE_SIZE,
+                                     8,
+                                     EGL_ALPHA_SIZE,
+                                     8,
+                                     EGL_DEPTH_SIZE,
+                                     16,
                                      EGL_NONE};
     EGLConfig config = nullptr;
     EGLint configs = 0;
@@ -130,21 +142,25 @@ DisplayBackend parse_display_backend(const std::string& name) {
   throw DisplayError("display: unknown backend '" + name + "' (known: headless, kms)");
 }
 
-Image read_frame_rgb(DisplayOutput& output) {
-  const int w = output.width_px(), h = output.height_px();
-  std::vector<std::uint8_t> rgba(static_cast<std::size_t>(w) * h * 4);
-  output.read_pixels(rgba);
-  Image rgb = Image::allocate(w, h, PixelFormat::kRgb8);
-  for (int y = 0; y < h; ++y) {
-    const std::uint8_t* src = rgba.data() + static_cast<std::size_t>(y) * w * 4;
+Image rgba_to_rgb(std::span<const std::uint8_t> rgba, int width_px, int height_px) {
+  Image rgb = Image::allocate(width_px, height_px, PixelFormat::kRgb8);
+  for (int y = 0; y < height_px; ++y) {
+    const std::uint8_t* src = rgba.data() + static_cast<std::size_t>(y) * width_px * 4;
     std::uint8_t* dst = rgb.mutable_data() + std::ptrdiff_t{y} * rgb.stride_bytes();
-    for (int x = 0; x < w; ++x) {
+    for (int x = 0; x < width_px; ++x) {
       dst[3 * x + 0] = src[4 * x + 0];
       dst[3 * x + 1] = src[4 * x + 1];
       dst[3 * x + 2] = src[4 * x + 2];
     }
   }
   return rgb;
+}
+
+Image read_frame_rgb(DisplayOutput& output) {
+  const int w = output.width_px(), h = output.height_px();
+  std::vector<std::uint8_t> rgba(static_cast<std::size_t>(w) * h * 4);
+  output.read_pixels(rgba);
+  return rgba_to_rgb(rgba, w, h);
 }
 
 namespace detail {

@@ -363,7 +363,9 @@ struct HeadsetRenderer::Impl {
       scratch.assign(w.extent_uv_m.begin(), w.extent_uv_m.end());
       convex_hull(scratch, hull);
       if (hull.size() < 3) continue;
-      auto corner = [&](const Eigen::Vector2d& uv) { return w.origin + uv.x() * w.u + uv.y() * w.v; };
+      auto corner = [&](const Eigen::Vector2d& uv) {
+        return w.origin + uv.x() * w.u + uv.y() * w.v;
+      };
       std::size_t first = vertices.size() / 3;
       for (const Eigen::Vector2d& uv : hull) push(corner(uv));
       add_batch(GL_TRIANGLE_FAN, first, fill, 1.0f);
@@ -516,13 +518,13 @@ struct HeadsetRenderer::Impl {
     const int half = output.width_px() / 2;
     for (int eye = 0; eye < 2; ++eye) {
       glViewport(eye * half, 0, half, output.height_px());
-      glUniform4f(glGetUniformLocation(lens_program, "u_eye"), static_cast<float>(eye * half),
-                  0.0f, static_cast<float>(half), static_cast<float>(output.height_px()));
+      glUniform4f(glGetUniformLocation(lens_program, "u_eye"), static_cast<float>(eye * half), 0.0f,
+                  static_cast<float>(half), static_cast<float>(output.height_px()));
       glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
     }
   }
 
-  RenderTiming draw(const HeadsetFrame& frame) {
+  RenderTiming draw(const HeadsetFrame& frame, std::span<std::uint8_t> capture_rgba) {
     const TimeNs t0 = monotonic_now_ns();
     RenderTiming timing;
     glBindFramebuffer(GL_FRAMEBUFFER, scene_fbo);  // 0 without the lens pass
@@ -532,8 +534,8 @@ struct HeadsetRenderer::Impl {
     for (int eye = 0; eye < 2; ++eye) upload_image(eye, frame.eyes[eye].image);
     if (frame.walls != nullptr && frame.pose_valid) {
       // Culled for the midpoint of the eyes: a wall seen edge-on is invisible to both.
-      const Eigen::Vector3d viewer = 0.5 * (frame.eyes[0].T_world_cam.translation() +
-                                            frame.eyes[1].T_world_cam.translation());
+      const Eigen::Vector3d viewer =
+          0.5 * (frame.eyes[0].T_world_cam.translation() + frame.eyes[1].T_world_cam.translation());
       build_geometry(*frame.walls, viewer);
       glBindBuffer(GL_ARRAY_BUFFER, vbo);
       glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(vertices.size() * sizeof(float)),
@@ -545,6 +547,7 @@ struct HeadsetRenderer::Impl {
     if (options.hud) update_hud(frame);
     for (int eye = 0; eye < 2; ++eye) draw_eye(eye, frame);
     if (scene_fbo != 0) lens_pass();
+    if (!capture_rgba.empty()) output.read_pixels(capture_rgba);  // the default framebuffer
     timing.presented = output.present(timing.present_t_ns);
     timing.render_ns = timing.present_t_ns - t0;
     if (frame.capture_t_ns > 0) timing.latency_ns = timing.present_t_ns - frame.capture_t_ns;
@@ -555,7 +558,10 @@ struct HeadsetRenderer::Impl {
 HeadsetRenderer::HeadsetRenderer(DisplayOutput& output, const RendererOptions& options)
     : impl_(std::make_unique<Impl>(output, options)) {}
 HeadsetRenderer::~HeadsetRenderer() = default;
-RenderTiming HeadsetRenderer::draw(const HeadsetFrame& frame) { return impl_->draw(frame); }
+RenderTiming HeadsetRenderer::draw(const HeadsetFrame& frame,
+                                   std::span<std::uint8_t> capture_rgba) {
+  return impl_->draw(frame, capture_rgba);
+}
 const RendererOptions& HeadsetRenderer::options() const { return impl_->options; }
 
 }  // namespace wallar::display

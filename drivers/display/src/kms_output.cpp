@@ -26,8 +26,8 @@
 #include <thread>
 #include <vector>
 
-#include "wallar/core/time.hpp"
 #include "egl_handles.hpp"
+#include "wallar/core/time.hpp"
 #include "wallar/drivers/display/display_output.hpp"
 
 namespace wallar::display {

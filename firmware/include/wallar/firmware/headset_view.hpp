@@ -32,8 +32,8 @@ using DisplayOpener =
 struct HeadsetViewOptions {
   display::DisplayOptions display;
   display::RendererOptions renderer;
-  std::filesystem::path png_dir;  //!< empty: no PNG frames
-  int png_every = 1;              //!< write frames 0, N, 2N, ...
+  std::filesystem::path png_dir;               //!< empty: no PNG frames
+  int png_every = 1;                           //!< write frames 0, N, 2N, ...
   DisplayOpener open = display::open_display;  //!< tests inject failing outputs here
 };
 
@@ -45,7 +45,7 @@ struct HeadsetViewStats {
   std::uint64_t frames = 0;
   std::uint64_t written = 0;
   std::uint64_t present_failures = 0;
-  TimeNs last_t_ns = -1;  //!< the camera time of the last frame shown
+  TimeNs last_t_ns = -1;                 //!< the camera time of the last frame shown
   std::vector<std::int64_t> render_ns;   //!< per frame (the first 32768)
   std::vector<std::int64_t> latency_ns;  //!< per frame with a capture time (the first 32768)
   std::vector<std::string> written_files;
@@ -75,6 +75,7 @@ class HeadsetView {
   HeadsetViewOptions options_;
   std::unique_ptr<display::DisplayOutput> output_;
   std::unique_ptr<display::HeadsetRenderer> renderer_;
+  std::vector<std::uint8_t> capture_rgba_;  // a PNG frame, read back before present
   HeadsetViewStats stats_;
 };
 

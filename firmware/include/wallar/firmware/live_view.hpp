@@ -36,11 +36,11 @@ struct ViewPost {
 };
 
 struct LiveViewStats {
-  HeadsetViewStats view;         //!< frames drawn, render times, latencies (every output opened)
-  std::uint64_t posted = 0;      //!< frames the tracking side posted
-  std::uint64_t skipped = 0;     //!< posted but overwritten before the renderer took them
-  std::uint64_t losses = 0;      //!< times the output failed
-  std::uint64_t reopens = 0;     //!< times it was opened again
+  HeadsetViewStats view;      //!< frames drawn, render times, latencies (every output opened)
+  std::uint64_t posted = 0;   //!< frames the tracking side posted
+  std::uint64_t skipped = 0;  //!< posted but overwritten before the renderer took them
+  std::uint64_t losses = 0;   //!< times the output failed
+  std::uint64_t reopens = 0;  //!< times it was opened again
   std::string display;
 };
 

@@ -74,8 +74,11 @@ class DisplayOutput {
   [[nodiscard]] virtual const std::string& last_error() const = 0;
 };
 
-/// The frame last drawn, as a fresh 8-bit RGB image (PNG frames, tests); allocates.
+/// The frame last drawn (before present(); headless: also after), as a fresh 8-bit RGB image
+/// (tests); allocates.
 Image read_frame_rgb(DisplayOutput& output);
+/// Top-row-first RGBA pixels of a width x height frame as a fresh 8-bit RGB image; allocates.
+Image rgba_to_rgb(std::span<const std::uint8_t> rgba, int width_px, int height_px);
 
 /// Opens the output and makes its GL ES 3 context current on the calling thread.
 std::unique_ptr<DisplayOutput> open_display(const DisplayOptions& options);

@@ -17,6 +17,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 
 #include "wallar/core/image.hpp"
@@ -50,8 +51,9 @@ struct HudState {
 };
 
 struct HeadsetFrame {
-  TimeNs t_ns = 0;          //!< the camera frame's time stamp
-  TimeNs capture_t_ns = 0;  //!< CLOCK_MONOTONIC time it was captured/published (latency); 0 = unknown
+  TimeNs t_ns = 0;  //!< the camera frame's time stamp
+  TimeNs capture_t_ns =
+      0;  //!< CLOCK_MONOTONIC time it was captured/published (latency); 0 = unknown
   std::array<EyeInput, 2> eyes;
   bool pose_valid = true;  //!< false: camera images and HUD only
   const WallModel* walls = nullptr;
@@ -59,11 +61,11 @@ struct HeadsetFrame {
 };
 
 struct RendererOptions {
-  bool undistort = true;      //!< undistort the camera images (the overlay assumes it)
+  bool undistort = true;  //!< undistort the camera images (the overlay assumes it)
   bool hud = true;
   bool floor_grid = true;
   bool outlines = true;
-  float wall_alpha = 0.35f;   //!< fill opacity of the wall quads
+  float wall_alpha = 0.35f;  //!< fill opacity of the wall quads
   double grid_spacing_m = 0.5;
   double near_m = 0.05, far_m = 100.0;
   /// Lens pre-distortion per eye, r_src = r (1 + k1 r^2 + k2 r^4) with r in half-heights of
@@ -72,10 +74,10 @@ struct RendererOptions {
 };
 
 struct RenderTiming {
-  TimeNs render_ns = 0;      //!< from draw() until present() returned (kms: with the flip wait)
-  TimeNs present_t_ns = 0;   //!< when it reached the display
-  TimeNs latency_ns = -1;    //!< present_t_ns - capture_t_ns; -1 when unknown
-  bool presented = false;    //!< false: the output failed (see DisplayOutput::last_error)
+  TimeNs render_ns = 0;     //!< from draw() until present() returned (kms: with the flip wait)
+  TimeNs present_t_ns = 0;  //!< when it reached the display
+  TimeNs latency_ns = -1;   //!< present_t_ns - capture_t_ns; -1 when unknown
+  bool presented = false;   //!< false: the output failed (see DisplayOutput::last_error)
 };
 
 /// An eye's viewport in display pixels, top-left origin.
@@ -96,7 +98,10 @@ class HeadsetRenderer {
   HeadsetRenderer& operator=(const HeadsetRenderer&) = delete;
 
   /// Draws both eyes and presents. Images of a new size re-allocate their textures once.
-  RenderTiming draw(const HeadsetFrame& frame);
+  /// A non-empty `capture_rgba` (width * height * 4 bytes of the output) receives the finished
+  /// frame, top row first, read back before it is presented (after a swap the back buffer's
+  /// contents are undefined on KMS).
+  RenderTiming draw(const HeadsetFrame& frame, std::span<std::uint8_t> capture_rgba = {});
 
   [[nodiscard]] const RendererOptions& options() const;
 
