@@ -6,13 +6,12 @@
 #include <cstdio>
 #include <iostream>
 #include <limits>
-#include <mutex>
 #include <thread>
 
 #include "commands.hpp"
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/recording/calibration_files.hpp"
-#include "wallar/drivers/source/recorder_sink.hpp"
+#include "wallar/drivers/source/async_recorder.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/live_imu.hpp"
 #include "wallar/firmware/live_stereo.hpp"
@@ -31,41 +30,41 @@ struct RecordArgs {
   ReplayFlags flags;
 };
 
-// Live sources call from two threads (capture, imu); the writer wants one at a time. Recording
-// is not on the fixed-rate path, so a mutex will do until the bounded writer thread (issue 9).
-class SerialisedSink final : public source::SensorSink, public drivers::ImuSampleSink {
- public:
-  explicit SerialisedSink(source::SensorSink& inner) : inner_(inner) {}
-  void on_imu(const ImuSample& s) override {
-    std::lock_guard lock(mutex_);
-    inner_.on_imu(s);
-  }
-  void on_imu_sample(const ImuSample& s) noexcept override {
-    try {
-      on_imu(s);
-    } catch (const std::exception& e) {
-      std::lock_guard lock(mutex_);
-      if (error_.empty()) error_ = e.what();
-    }
-  }
-  void on_stereo(const StereoFrame& f) override {
-    std::lock_guard lock(mutex_);
-    inner_.on_stereo(f);
-  }
-  void on_unpaired(int cam, const CameraFrame& f) override {
-    std::lock_guard lock(mutex_);
-    inner_.on_unpaired(cam, f);
-  }
-  std::string error() {
-    std::lock_guard lock(mutex_);
-    return error_;
-  }
+// What the recorder reports, in both outputs.
+nlohmann::json recorder_json(const source::RecorderCounters& c,
+                             const source::AsyncRecorderOptions& o) {
+  return {{"imu_dropped", c.imu_dropped},           {"frames_dropped", c.frames_dropped},
+          {"imu_high_water", c.imu_high_water},     {"imu_capacity", o.imu_capacity},
+          {"frame_high_water", c.frame_high_water}, {"frame_capacity", o.frame_capacity},
+          {"pairs_written", c.pairs_written},       {"frames_not_copied", c.frames_not_copied},
+          {"write_errors", c.write_errors},         {"error", c.error}};
+}
 
- private:
-  std::mutex mutex_;
-  source::SensorSink& inner_;
-  std::string error_;
-};
+std::string recorder_text(const source::RecorderCounters& c,
+                          const source::AsyncRecorderOptions& o) {
+  return "  recorder: dropped " + std::to_string(c.imu_dropped) + " IMU samples, " +
+         std::to_string(c.frames_dropped) + " frames; high water IMU " +
+         std::to_string(c.imu_high_water) + "/" + std::to_string(o.imu_capacity) + ", frames " +
+         std::to_string(c.frame_high_water) + "/" + std::to_string(o.frame_capacity) +
+         "; write errors " + std::to_string(c.write_errors) + "\n";
+}
+
+// kExitOk when the recording holds everything the sources delivered; else one line on stderr
+// naming what is missing, and kExitFailure.
+int recorder_exit_code(const source::RecorderCounters& c) {
+  if (c.lost() == 0 && c.error.empty()) return kExitOk;
+  std::string line = "wallar: the recording is incomplete:";
+  if (c.imu_dropped + c.frames_dropped > 0) {
+    line += " dropped " + std::to_string(c.imu_dropped) + " IMU samples and " +
+            std::to_string(c.frames_dropped) + " camera frames (the writer fell behind)";
+  }
+  if (!c.error.empty()) {
+    if (c.imu_dropped + c.frames_dropped > 0) line += ";";
+    line += " " + std::to_string(c.write_errors) + " samples and frames not written: " + c.error;
+  }
+  std::cerr << line << "\n";
+  return kExitFailure;
+}
 
 // The rig written to the recording's sensor.yaml files: the board's calibration when it names
 // one, else the cameras' sizes and rates only (intrinsics unknown: calibrate afterwards).
@@ -89,20 +88,29 @@ int run_live_record(const RecordArgs& args, const firmware::BoardConfig& board) 
   if (std::filesystem::exists(std::filesystem::path(args.out) / "mav0", ec))
     throw_input_error(args.out, 0, "already holds a recording (mav0/); refusing to overwrite it");
   const RigCalibration rig = live_rig(board);
-  // Open the devices before creating the recording, so a missing camera leaves nothing behind.
-  struct Forward final : source::SensorSink {
-    source::SensorSink* to = nullptr;
+  // Open the devices before creating the recording, so a missing camera leaves nothing behind;
+  // the sources are handed a forwarder that reaches the recorder once it exists (before any
+  // sample flows: run() has not started).
+  struct Forward final : source::SensorSink, drivers::ImuSampleSink {
+    source::AsyncRecorder* to = nullptr;
     void on_imu(const ImuSample& s) override { to->on_imu(s); }
+    void on_imu_sample(const ImuSample& s) noexcept override { to->on_imu_sample(s); }
     void on_stereo(const StereoFrame& f) override { to->on_stereo(f); }
     void on_unpaired(int cam, const CameraFrame& f) override { to->on_unpaired(cam, f); }
   };
   Forward forward;
-  SerialisedSink serial(forward);
-  firmware::LiveStereo cameras(board, serial);
+  firmware::LiveStereo cameras(board, forward);
   std::unique_ptr<firmware::LiveImu> imu;
-  if (board.imu.driver != "none") imu = std::make_unique<firmware::LiveImu>(board, serial);
+  if (board.imu.driver != "none") imu = std::make_unique<firmware::LiveImu>(board, forward);
   recording::EurocWriter writer(args.out, rig);
-  source::RecorderSink recorder(writer);
+  // The bounded writer thread: the capture and IMU threads never wait for the disk; frames are
+  // copied out of the V4L2 buffers at once (slots sized for the board's cameras).
+  source::AsyncRecorderOptions recorder_options;
+  for (std::size_t i = 0; i < 2; ++i) {
+    recorder_options.width_px[i] = board.cameras[i].width_px;
+    recorder_options.height_px[i] = board.cameras[i].height_px;
+  }
+  source::AsyncRecorder recorder(writer, recorder_options);
   forward.to = &recorder;
   std::cerr << "wallar: recording " << cameras.description()
             << (imu ? "; " + imu->description() : std::string("; no IMU")) << " to " << args.out
@@ -138,10 +146,9 @@ int run_live_record(const RecordArgs& args, const firmware::BoardConfig& board) 
   stop.store(true);
   watch.join();
   if (imu_thread.joinable()) imu_thread.join();
-  writer.close();
+  const source::RecorderCounters rc = recorder.close();  // drains, fsyncs, joins
   if (capture_error) std::rethrow_exception(capture_error);
   if (imu_error) std::rethrow_exception(imu_error);
-  if (const std::string e = serial.error(); !e.empty()) throw InputError(e);
 
   const drivers::StereoCapture& cap = cameras.capture();
   nlohmann::json cams = nlohmann::json::array();
@@ -157,22 +164,24 @@ int run_live_record(const RecordArgs& args, const firmware::BoardConfig& board) 
                     {"counters", drivers::format_counters(c)}});
   }
   const nlohmann::json report{{"out", args.out},
-                              {"imu_rows", writer.imu_written()},
-                              {"cam_rows", {writer.frames_written(0), writer.frames_written(1)}},
+                              {"imu_rows", rc.imu_written},
+                              {"cam_rows", rc.frames_written},
                               {"pairs", cap.pairing().pairs},
                               {"unpaired", {cap.pairing().unpaired[0], cap.pairing().unpaired[1]}},
-                              {"cameras", cams}};
+                              {"cameras", cams},
+                              {"recorder", recorder_json(rc, recorder_options)}};
   if (args.json) {
     std::cout << report.dump(2) << "\n";
   } else {
-    std::cout << "recorded " << writer.imu_written() << " IMU rows, " << writer.frames_written(0)
-              << " + " << writer.frames_written(1) << " frames (" << cap.pairing().pairs
-              << " pairs) to " << args.out << "\n";
+    std::cout << "recorded " << rc.imu_written << " IMU rows, " << rc.frames_written[0] << " + "
+              << rc.frames_written[1] << " frames (" << cap.pairing().pairs << " pairs) to "
+              << args.out << "\n";
     for (int i = 0; i < 2; ++i)
       std::cout << "  " << cap.camera(i).config().name << ": "
                 << drivers::format_counters(cap.camera(i).counters()) << "\n";
+    std::cout << recorder_text(rc, recorder_options);
   }
-  return kExitOk;
+  return recorder_exit_code(rc);
 }
 
 int run_record_command(const RecordArgs& args) {
@@ -194,23 +203,29 @@ int run_record_command(const RecordArgs& args) {
     throw_input_error(args.out, 0, "already holds a recording (mav0/); refusing to overwrite it");
   }
   recording::EurocWriter writer(args.out, rec.rig());
-  source::RecorderSink sink(writer);
+  // The same writer thread as live recording; replay can wait for room, so nothing is dropped,
+  // and its images are heap copies already (nothing to give back early): kept by reference.
+  source::AsyncRecorderOptions recorder_options;
+  recorder_options.copy_frames = false;
+  recorder_options.wait_when_full = true;
+  source::AsyncRecorder recorder(writer, recorder_options);
   const source::ReplayStats stats =
-      firmware::run_replay(rec, options, sink, stop_requested(), s_to_ns(args.duration_s));
-  writer.close();
+      firmware::run_replay(rec, options, recorder, stop_requested(), s_to_ns(args.duration_s));
+  const source::RecorderCounters rc = recorder.close();
   if (args.json) {
     std::cout << nlohmann::json{{"out", args.out},
-                                {"imu_rows", writer.imu_written()},
-                                {"cam_rows", {writer.frames_written(0), writer.frames_written(1)}},
-                                {"replay", firmware::to_json(stats)}}
+                                {"imu_rows", rc.imu_written},
+                                {"cam_rows", rc.frames_written},
+                                {"replay", firmware::to_json(stats)},
+                                {"recorder", recorder_json(rc, recorder_options)}}
                      .dump(2)
               << "\n";
   } else {
-    std::cout << "recorded " << writer.imu_written() << " IMU rows, " << writer.frames_written(0)
-              << " + " << writer.frames_written(1) << " frames to " << args.out << "\n"
-              << firmware::to_text(stats);
+    std::cout << "recorded " << rc.imu_written << " IMU rows, " << rc.frames_written[0] << " + "
+              << rc.frames_written[1] << " frames to " << args.out << "\n"
+              << firmware::to_text(stats) << recorder_text(rc, recorder_options);
   }
-  return kExitOk;
+  return recorder_exit_code(rc);
 }
 
 }  // namespace
