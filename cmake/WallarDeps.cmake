@@ -12,6 +12,7 @@ pkg_check_modules(YAML REQUIRED IMPORTED_TARGET yaml-0.1)
 pkg_check_modules(PNG REQUIRED IMPORTED_TARGET libpng)
 pkg_check_modules(JPEG REQUIRED IMPORTED_TARGET libjpeg)  # MJPEG frames, JPEG calibration images
 pkg_check_modules(USB REQUIRED IMPORTED_TARGET libusb-1.0)  # drivers/usb: discovery, hot-plug
+pkg_check_modules(SYSTEMD REQUIRED IMPORTED_TARGET libsystemd)  # sd_notify: Type=notify, watchdog
 pkg_check_modules(GPIOD REQUIRED IMPORTED_TARGET libgpiod)  # v1 API (gpiod.h), Debian 12: 1.6.3
 # The headset view (drivers/display): Mesa's EGL and GLES, GBM and libdrm for KMS.
 pkg_check_modules(EGL REQUIRED IMPORTED_TARGET egl)

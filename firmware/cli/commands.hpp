@@ -22,6 +22,8 @@ enum ExitCode : int {
 
 /// Set by SIGINT/SIGTERM; long-running commands poll it and stop cleanly.
 std::atomic<bool>& stop_requested();
+/// Set by SIGUSR1: print the statistics now (wallar run).
+std::atomic<bool>& stats_requested();
 
 /// Each adds a subcommand to `app` and sets `run` to its action when it is chosen.
 void add_run_command(CLI::App& app, std::function<int()>& run);

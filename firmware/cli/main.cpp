@@ -17,11 +17,17 @@ std::atomic<bool>& stop_requested() {
   return flag;
 }
 
+std::atomic<bool>& stats_requested() {
+  static std::atomic<bool> flag{false};
+  return flag;
+}
+
 }  // namespace wallar::cli
 
 namespace {
 
 void on_stop_signal(int /*signo*/) { wallar::cli::stop_requested().store(true); }
+void on_stats_signal(int /*signo*/) { wallar::cli::stats_requested().store(true); }
 
 void install_signal_handlers() {
   struct sigaction sa {};
@@ -29,6 +35,11 @@ void install_signal_handlers() {
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
+  struct sigaction stats {};
+  stats.sa_handler = on_stats_signal;
+  sigemptyset(&stats.sa_mask);
+  stats.sa_flags = SA_RESTART;
+  sigaction(SIGUSR1, &stats, nullptr);  // `wallar run` prints its stats table
 }
 
 }  // namespace

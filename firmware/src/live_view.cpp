@@ -5,26 +5,28 @@
 
 #include <chrono>
 #include <cstdio>
+#include <thread>
 
 namespace wallar::firmware {
 
 LiveView::LiveView(const RigCalibration& rig, const HeadsetViewOptions& options, WallModel walls,
-                   double fps)
-    : walls_(std::move(walls)), fps_(fps) {
-  thread_ = std::thread([this, rig, options] { loop(rig, options); });
+                   double fps, TripleBuffer<WallModel>* live_walls, ThreadSpec spec)
+    : walls_(std::move(walls)), fps_(fps), live_walls_(live_walls) {
+  thread_ =
+      std::make_unique<RtThread>(std::move(spec), [this, rig, options] { loop(rig, options); });
   // The display opens on the thread that will draw; wait for it to say how that went.
   int state = 0;
   while ((state = ready_.load(std::memory_order_acquire)) == 0) {
     ready_.wait(0, std::memory_order_acquire);
   }
   if (state < 0) {
-    thread_.join();
+    thread_->join();
     throw display::DisplayError(error_);
   }
 }
 
 LiveView::~LiveView() {
-  if (thread_.joinable()) stop();
+  if (thread_->joinable()) stop();
 }
 
 void LiveView::post(ViewPost post) {
@@ -38,7 +40,7 @@ LiveViewStats LiveView::stop() {
   stop_.store(true, std::memory_order_release);
   wakeups_.fetch_add(1, std::memory_order_release);
   wakeups_.notify_one();
-  if (thread_.joinable()) thread_.join();
+  if (thread_->joinable()) thread_->join();
   stats_.posted = posted_.load(std::memory_order_relaxed);
   stats_.skipped = mailbox_.overwritten();
   return stats_;
@@ -72,6 +74,7 @@ void LiveView::loop(const RigCalibration& rig, const HeadsetViewOptions& options
     return;
   }
   stats_.display = view->describe();
+  display_ = stats_.display;
   ready_.store(1, std::memory_order_release);
   ready_.notify_one();
   ViewPost post;
@@ -98,10 +101,26 @@ void LiveView::loop(const RigCalibration& rig, const HeadsetViewOptions& options
     }
     const std::uint32_t seen = wakeups_.load(std::memory_order_acquire);
     if (mailbox_.take(post)) {
+      const WallModel* walls = &walls_;
+      if (live_walls_ != nullptr) {
+        live_walls_->refresh();
+        if (live_walls_->published() > 0) walls = &live_walls_->front();
+      }
       hud.tracking = dsp::to_string(post.state);
+      hud.walls = static_cast<int>(walls->walls.size());
+      hud.degraded = post.degraded != nullptr ? post.degraded : "";
       const bool valid = post.state == dsp::TrackingState::kTracking;
+      const TimeNs t0 = monotonic_now_ns();
       const bool shown =
-          view->show(post.frame, post.capture_t_ns, post.T_world_body, valid, &walls_, hud);
+          view->show(post.frame, post.capture_t_ns, post.T_world_body, valid, walls, hud);
+      const TimeNs t1 = monotonic_now_ns();
+      if (shown) {
+        render_hist_.record(t1 - t0);
+        if (post.capture_t_ns > 0) latency_hist_.record(t1 - post.capture_t_ns);
+        if (fps_ > 0.0 && static_cast<double>(t1 - t0) > 1e9 / fps_) {
+          misses_.fetch_add(1, std::memory_order_relaxed);
+        }
+      }
       post = ViewPost{};  // release the frame's buffers now
       if (!shown) {
         ++stats_.losses;

@@ -29,7 +29,7 @@ TrackingSystem::TrackingSystem(const RigCalibration& rig, const TrackingOptions&
                                dsp::Tracker::Clock clock)
     : options_(options),
       tracker_(rig, options.tracker, clock),
-      mapper_(tracker_.intrinsics(), options.mapper),
+      mapper_(std::make_unique<dsp::Mapper>(tracker_.intrinsics(), options.mapper)),
       keyframes_(kKeyframeSlots,
                  [&] {
                    return dsp::KeyframeMessage(
@@ -47,12 +47,38 @@ TrackingSystem::TrackingSystem(const RigCalibration& rig, const TrackingOptions&
                            kMaxCorrectedKeyframes),
       gyro_(static_cast<std::size_t>(std::max(16, options.imu_capacity))) {
   T_rect_imu_ = tracker_.T_body_rect().inverse() * rig.imu.T_body_imu;
-  if (options_.mapping_thread) thread_ = std::thread([this] { mapping_loop(); });
+  if (options_.mapping_thread) start_mapping();
+}
+
+void TrackingSystem::start_mapping() {
+  stop_.store(false);
+  thread_ = std::make_unique<RtThread>(options_.mapping_thread_spec, [this] { mapping_loop(); });
 }
 
 TrackingSystem::~TrackingSystem() {
   stop_.store(true);
-  if (thread_.joinable()) thread_.join();
+  if (thread_ && thread_->joinable()) thread_->join();
+}
+
+void TrackingSystem::reset() {
+  if (thread_ && thread_->joinable()) {
+    stop_.store(true);
+    thread_->join();  // from here this thread owns both ends of both rings
+  }
+  while (keyframes_.front() != nullptr) keyframes_.pop();
+  while (corrections_.front() != nullptr) corrections_.pop();
+  mapper_ = std::make_unique<dsp::Mapper>(tracker_.intrinsics(), options_.mapper);
+  tracker_.reset();
+  last_frame_t_ns_ = -1;
+  {
+    const std::lock_guard<std::mutex> lock(map_mutex_);
+    map_.reset();
+  }
+  if (options_.map_channel != nullptr) {
+    options_.map_channel->back() = nullptr;
+    options_.map_channel->publish();
+  }
+  if (options_.mapping_thread) start_mapping();
 }
 
 void TrackingSystem::on_imu(const ImuSample& sample) {
@@ -76,7 +102,8 @@ dsp::RotationPrior TrackingSystem::gyro_prior(TimeNs t_ns) {
     const Eigen::Vector3d w = 0.5 * (a.gyro_rad_s + b.gyro_rad_s);
     const Eigen::Vector3d phi = w * ns_to_s(t1 - t0);
     const double angle = phi.norm();
-    if (angle > 1e-12) q_prev_cur = q_prev_cur * Eigen::Quaterniond(Eigen::AngleAxisd(angle, phi / angle));
+    if (angle > 1e-12)
+      q_prev_cur = q_prev_cur * Eigen::Quaterniond(Eigen::AngleAxisd(angle, phi / angle));
     ++used;
   }
   if (used == 0) return prior;
@@ -128,8 +155,8 @@ dsp::TrackResult TrackingSystem::on_stereo(const StereoFrame& frame) {
 
 void TrackingSystem::map_keyframe(const dsp::KeyframeMessage& message, dsp::MapCorrection& out) {
   const TimeNs t0 = monotonic_now_ns();
-  mapper_.add_keyframe(message);
-  const dsp::MapperStats stats = mapper_.local_adjust(out);
+  mapper_->add_keyframe(message);
+  const dsp::MapperStats stats = mapper_->local_adjust(out);
   const TimeNs t1 = monotonic_now_ns();
   local_adjustments_.fetch_add(1, std::memory_order_relaxed);
   culled_.fetch_add(static_cast<std::uint64_t>(stats.culled), std::memory_order_relaxed);
@@ -138,7 +165,11 @@ void TrackingSystem::map_keyframe(const dsp::KeyframeMessage& message, dsp::MapC
 }
 
 void TrackingSystem::publish_map() {
-  auto snapshot = std::make_shared<const dsp::MapSnapshot>(mapper_.snapshot());
+  auto snapshot = std::make_shared<const dsp::MapSnapshot>(mapper_->snapshot());
+  if (options_.map_channel != nullptr) {
+    options_.map_channel->back() = snapshot;
+    options_.map_channel->publish();
+  }
   const std::lock_guard<std::mutex> lock(map_mutex_);
   map_ = std::move(snapshot);
 }
@@ -162,7 +193,7 @@ void TrackingSystem::mapping_loop() {
     if (stop_.load()) break;
     if (since_global >= kKeyframesPerGlobalAdjustment) {
       if (dsp::MapCorrection* out = corrections_.producer_slot()) {
-        const dsp::MapperStats stats = mapper_.global_adjust(*out);
+        const dsp::MapperStats stats = mapper_->global_adjust(*out);
         corrections_.push();
         global_adjustments_.fetch_add(1, std::memory_order_relaxed);
         culled_.fetch_add(static_cast<std::uint64_t>(stats.culled), std::memory_order_relaxed);
@@ -176,7 +207,7 @@ void TrackingSystem::mapping_loop() {
 }
 
 std::shared_ptr<const dsp::MapSnapshot> TrackingSystem::finish() {
-  if (thread_.joinable()) {
+  if (thread_ && thread_->joinable()) {
     // Let the mapper take what is queued, then stop it. (front() is the consumer's: this
     // thread is the producer, so it may only ask how full the ring is.)
     while (keyframes_.size_approx() != 0) {
@@ -187,14 +218,14 @@ std::shared_ptr<const dsp::MapSnapshot> TrackingSystem::finish() {
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
     stop_.store(true);
-    thread_.join();
+    thread_->join();
     while (dsp::MapCorrection* c = corrections_.front()) {
       tracker_.apply(*c);
       corrections_.pop();
     }
   }
-  if (mapper_.keyframe_count() > 0) {
-    const dsp::MapperStats stats = mapper_.global_adjust(lockstep_correction_);
+  if (mapper_->keyframe_count() > 0) {
+    const dsp::MapperStats stats = mapper_->global_adjust(lockstep_correction_);
     tracker_.apply(lockstep_correction_);
     global_adjustments_.fetch_add(1, std::memory_order_relaxed);
     culled_.fetch_add(static_cast<std::uint64_t>(stats.culled), std::memory_order_relaxed);

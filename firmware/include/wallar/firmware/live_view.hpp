@@ -18,13 +18,16 @@
 
 #include <atomic>
 #include <cstdint>
+#include <memory>
 #include <string>
-#include <thread>
 
 #include "wallar/core/mailbox.hpp"
 #include "wallar/core/stereo_frame.hpp"
+#include "wallar/core/triple_buffer.hpp"
 #include "wallar/dsp/tracking/tracker.hpp"
 #include "wallar/firmware/headset_view.hpp"
+#include "wallar/firmware/latency_histogram.hpp"
+#include "wallar/firmware/rt_thread.hpp"
 
 namespace wallar::firmware {
 
@@ -33,6 +36,7 @@ struct ViewPost {
   TimeNs capture_t_ns = 0;
   SE3d T_world_body = SE3d::Identity();
   dsp::TrackingState state = dsp::TrackingState::kInitialising;
+  const char* degraded = nullptr;  //!< a static string for the HUD's degraded line, or null
 };
 
 struct LiveViewStats {
@@ -47,9 +51,11 @@ struct LiveViewStats {
 class LiveView {
  public:
   /// Starts the thread, which opens the display; throws DisplayError (one line) if it cannot.
-  /// `walls` is the model drawn (fixed for the view's life), `fps` the HUD's camera rate.
+  /// `walls` is the model drawn, `fps` the HUD's camera rate. With `live_walls` (its one reader
+  /// is this view's thread) the newest model published there replaces `walls` as it comes.
   LiveView(const RigCalibration& rig, const HeadsetViewOptions& options, WallModel walls,
-           double fps);
+           double fps, TripleBuffer<WallModel>* live_walls = nullptr,
+           ThreadSpec spec = {"render", 0, -1, 0});
   ~LiveView();
   LiveView(const LiveView&) = delete;
   LiveView& operator=(const LiveView&) = delete;
@@ -60,12 +66,24 @@ class LiveView {
   LiveViewStats stop();
   /// Posts taken and drawn (or failed to draw) so far; any thread.
   [[nodiscard]] std::uint64_t attempts() const { return attempts_.load(std::memory_order_acquire); }
+  /// Per drawn frame: render time (from the draw call until present returned) and camera-to-
+  /// display latency; frames whose render time exceeded the camera's frame period. Any thread.
+  [[nodiscard]] const LatencyHistogram& render_time() const { return render_hist_; }
+  [[nodiscard]] const LatencyHistogram& latency() const { return latency_hist_; }
+  [[nodiscard]] std::uint64_t misses() const { return misses_.load(std::memory_order_relaxed); }
+  /// The output's description (after construction).
+  [[nodiscard]] const std::string& display() const { return display_; }
+  [[nodiscard]] const RtThread* thread() const { return thread_.get(); }
 
  private:
   void loop(const RigCalibration& rig, const HeadsetViewOptions& options);
 
   WallModel walls_;
   double fps_;
+  TripleBuffer<WallModel>* live_walls_;
+  LatencyHistogram render_hist_, latency_hist_;
+  std::atomic<std::uint64_t> misses_{0};
+  std::string display_;
   NewestMailbox<ViewPost> mailbox_;
   std::atomic<std::uint32_t> wakeups_{0};
   std::atomic<std::uint64_t> posted_{0};
@@ -74,7 +92,7 @@ class LiveView {
   std::atomic<int> ready_{0};  // 0 starting, 1 running, -1 failed (error_ set)
   std::string error_;
   LiveViewStats stats_;  // written by the thread, read after join
-  std::thread thread_;
+  std::unique_ptr<RtThread> thread_;
 };
 
 }  // namespace wallar::firmware

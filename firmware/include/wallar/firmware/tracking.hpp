@@ -13,7 +13,8 @@
 /// thread: slower per key-frame, but bit-for-bit repeatable (tests, evaluation).
 ///
 /// Threading: on_imu() and on_stereo() belong to one thread (the tracking thread);
-/// latest_map() may be called from any thread; finish() from the tracking thread, once.
+/// latest_map() may be called from any thread; finish() and reset() from the tracking thread
+/// (finish once; or from another thread after the tracking thread was joined).
 #pragma once
 
 #include <atomic>
@@ -25,9 +26,11 @@
 #include "wallar/core/imu_sample.hpp"
 #include "wallar/core/spsc_ring.hpp"
 #include "wallar/core/stereo_frame.hpp"
+#include "wallar/core/triple_buffer.hpp"
 #include "wallar/dsp/tracking/mapper.hpp"
 #include "wallar/dsp/tracking/tracker.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/rt_thread.hpp"
 
 namespace wallar::firmware {
 
@@ -36,7 +39,10 @@ struct TrackingOptions {
   dsp::MapperConfig mapper;
   bool mapping_thread = true;  //!< false: lock step (repeatable)
   bool use_gyro = true;
-  int imu_capacity = 4096;     //!< gyro samples kept between frames
+  int imu_capacity = 4096;  //!< gyro samples kept between frames
+  ThreadSpec mapping_thread_spec{"mapping", 0, -1, 0};
+  /// Also publish each map here (one reader, e.g. the reconstruction thread); may be null.
+  TripleBuffer<std::shared_ptr<const dsp::MapSnapshot>>* map_channel = nullptr;
 };
 
 /// The board file's tracking section as tracker and mapper settings.
@@ -61,6 +67,10 @@ class TrackingSystem {
   /// Stops the mapping thread after it has taken every key-frame, runs a global bundle
   /// adjustment and returns the final map.
   std::shared_ptr<const dsp::MapSnapshot> finish();
+  /// Forgets the map and the tracker's state (restarting the mapping thread); allocates.
+  void reset();
+  /// The mapping thread (null in lock step).
+  [[nodiscard]] const RtThread* mapping_thread() const { return thread_.get(); }
   /// The newest published map (null before the first key-frame was mapped).
   [[nodiscard]] std::shared_ptr<const dsp::MapSnapshot> latest_map() const;
 
@@ -73,11 +83,12 @@ class TrackingSystem {
   void mapping_loop();
   void map_keyframe(const dsp::KeyframeMessage& message, dsp::MapCorrection& out);
   void publish_map();
+  void start_mapping();
   dsp::RotationPrior gyro_prior(TimeNs t_ns);
 
   TrackingOptions options_;
   dsp::Tracker tracker_;
-  dsp::Mapper mapper_;
+  std::unique_ptr<dsp::Mapper> mapper_;
   SE3d T_rect_imu_ = SE3d::Identity();
   SpscRing<dsp::KeyframeMessage> keyframes_;
   SpscRing<dsp::MapCorrection> corrections_;
@@ -91,7 +102,7 @@ class TrackingSystem {
   std::shared_ptr<const dsp::MapSnapshot> map_;
   std::vector<std::int64_t> mapping_times_;
   std::atomic<bool> stop_{false};
-  std::thread thread_;
+  std::unique_ptr<RtThread> thread_;
 };
 
 }  // namespace wallar::firmware
