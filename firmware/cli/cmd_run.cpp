@@ -39,14 +39,6 @@ struct RunArgs {
   ReplayFlags flags;
 };
 
-dsp::ScoreMethod parse_method(const std::string& m) {
-  if (m == "bsf") return dsp::ScoreMethod::kBsf;
-  if (m == "b-ransac") return dsp::ScoreMethod::kBinomial;
-  if (m == "ransac") return dsp::ScoreMethod::kRansac;
-  if (m == "msac") return dsp::ScoreMethod::kMsac;
-  throw InputError("--method '" + m + "': expected bsf, b-ransac, ransac or msac");
-}
-
 nlohmann::json latency_json(const firmware::LatencySummary& l) {
   return {{"count", l.count},
           {"p50_ms", l.p50_ms},
@@ -145,7 +137,7 @@ int run_run_command(const RunArgs& args) {
   options.png_dir = fs::path(args.out) / "view";
   options.png_every = args.view_every;
   for (const std::string& f : args.faults) options.faults.push_back(firmware::parse_fault(f));
-  options.wall_method = parse_method(args.method);
+  options.wall_method = score_method_named(args.method);
   options.seed = args.seed;
   options.realtime = !args.no_rt;
   options.input_keys = args.keys;
@@ -171,6 +163,12 @@ int run_run_command(const RunArgs& args) {
   if (report.room) {
     std::ofstream(fs::path(args.out) / "walls.json") << summary["walls"].dump(2) << "\n";
     outputs.push_back("walls.json");
+    if (report.map) {
+      cloud::write_ply_rgb(
+          fs::path(args.out) / "map.ply", report.map->points,
+          firmware::surface_colours(report.map->points, *report.room, options.wall_threshold_m));
+      outputs.push_back("map.ply");
+    }
   }
   if (report.view.view.written > 0) outputs.push_back("view/");
   summary["outputs"] = outputs;
@@ -235,7 +233,9 @@ void add_run_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--fault", args->faults,
                   "Inject a fault into the replayed streams: camera-stall@T+D, imu-unplug@T+D, "
                   "corrupt-frame@T (seconds from the start; repeatable)");
-  cmd->add_option("--method", args->method, "Wall search score: bsf, b-ransac, ransac, msac")
+  cmd->add_option("--method", args->method,
+                  "Wall search score: ransac, msac, bsf (BSF-RANSAC) or binomial (B-RANSAC)")
+      ->check(CLI::IsMember(kScoreMethodNames))
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Seed of the wall search")->capture_default_str();
   cmd->add_option("--keys", args->keys,

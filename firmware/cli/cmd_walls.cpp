@@ -46,13 +46,6 @@ Eigen::Vector3d parse_vec3(const std::string& text, const char* option) {
   return v;
 }
 
-dsp::ScoreMethod parse_method(const std::string& m) {
-  if (m == "ransac") return dsp::ScoreMethod::kRansac;
-  if (m == "msac") return dsp::ScoreMethod::kMsac;
-  if (m == "bsf") return dsp::ScoreMethod::kBsf;
-  return dsp::ScoreMethod::kBinomial;
-}
-
 int run_walls_command(const WallsArgs& a) {
   cloud::CloudReadStats read_stats;
   const PointCloud cloud = cloud::read_cloud(a.input, &read_stats);
@@ -63,7 +56,7 @@ int run_walls_command(const WallsArgs& a) {
                           std::to_string(read_stats.non_finite_skipped) + " non-finite skipped)");
   }
   dsp::RoomConfig cfg;
-  cfg.detector.method = parse_method(a.method);
+  cfg.detector.method = score_method_named(a.method);
   cfg.detector.sampling =
       a.sampling == "uniform" ? dsp::Sampling::kUniform : dsp::Sampling::kGuided;
   cfg.detector.beta = a.beta;
@@ -133,7 +126,7 @@ void add_walls_command(CLI::App& app, std::function<int()>& run) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--method", a->method,
                   "Score: ransac, msac, bsf (BSF-RANSAC) or binomial (B-RANSAC)")
-      ->check(CLI::IsMember({"ransac", "msac", "bsf", "binomial"}))
+      ->check(CLI::IsMember(kScoreMethodNames))
       ->capture_default_str();
   cmd->add_option("--sampling", a->sampling, "uniform or guided (neighbourhood) sampling")
       ->check(CLI::IsMember({"uniform", "guided"}))

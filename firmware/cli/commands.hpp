@@ -45,6 +45,7 @@ void add_eval_marker_command(CLI::App& eval, std::function<int()>& run);
 }  // namespace wallar::cli
 
 #include "wallar/drivers/source/replay_source.hpp"
+#include "wallar/dsp/walls/wall_detector.hpp"
 
 namespace wallar::cli {
 
@@ -60,5 +61,15 @@ struct ReplayFlags {
   [[nodiscard]] source::ReplayOptions apply(source::ReplayOptions base) const;
 };
 void add_replay_flags(CLI::App& cmd, ReplayFlags& flags);
+
+/// The wall search's score by its command-line name: ransac, msac, bsf (BSF-RANSAC) or
+/// binomial (B-RANSAC); options check the name with kScoreMethodNames.
+inline const std::vector<std::string> kScoreMethodNames{"ransac", "msac", "bsf", "binomial"};
+inline dsp::ScoreMethod score_method_named(const std::string& m) {
+  if (m == "ransac") return dsp::ScoreMethod::kRansac;
+  if (m == "msac") return dsp::ScoreMethod::kMsac;
+  if (m == "bsf") return dsp::ScoreMethod::kBsf;
+  return dsp::ScoreMethod::kBinomial;
+}
 
 }  // namespace wallar::cli

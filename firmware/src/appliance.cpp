@@ -1087,6 +1087,9 @@ ApplianceReport run_appliance(const BoardConfig& board, const ApplianceOptions& 
   if (!options.deterministic) {
     reconstruct_timer = std::make_unique<PeriodicTimer>(options.reconstruct_period_ns);
     reconstruct_thread = std::make_unique<RtThread>(spec_of("reconstruct", realtime), [&] {
+      // Counted, not required to be zero: the wall search builds its result (a background
+      // module like mapping; tracking never waits for it).
+      tl_allocation_counter = &reconstruct_allocs;
       MapPtr map;
       while (!stop_modules.load(std::memory_order_acquire)) {
         reconstruct_timer->wait();
@@ -1096,6 +1099,7 @@ ApplianceReport run_appliance(const BoardConfig& board, const ApplianceOptions& 
         const PoseSnapshot p = pose.load();
         reconstruction.maybe_run(*map, down_of(p), p.epoch, false);
       }
+      tl_allocation_counter = nullptr;
     });
   }
   source->start(pipeline, pipeline, realtime, stop_modules);
@@ -1254,6 +1258,7 @@ ApplianceReport run_appliance(const BoardConfig& board, const ApplianceOptions& 
   // The final map (mapping stopped after a global adjustment) and its walls.
   const MapPtr final_map = tracker.finish();
   if (final_map) {
+    report.map = final_map;
     report.map_points = final_map->points.size();
     report.map_keyframes = final_map->keyframe_centres.size();
     const PoseSnapshot p = pose.load();

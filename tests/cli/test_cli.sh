@@ -109,6 +109,7 @@ run_sim)
   [ "$(json "d['stop_reason']")" = "end of replay" ] || fail "stop reason"
   [ -s "$tmp/out_dir/run_summary.json" ] || fail "no run_summary.json"
   [ "$(grep -c . "$tmp/out_dir/trajectory.tum")" -ge 30 ] || fail "trajectory.tum"
+  head -c 3 "$tmp/out_dir/map.ply" | grep -q ply || fail "no map.ply"
   [ -s "$tmp/out_dir/view/view_000000.png" ] || fail "no view PNG"
   python3 -c "import struct,sys; b=open('$tmp/out_dir/view/view_000000.png','rb').read(24); sys.exit(0 if struct.unpack('>II', b[16:24]) == (1280, 720) else 1)" || fail "view size"
   # Heap allocations on the fixed-rate threads after start-up: none (counted by the wallar
@@ -117,7 +118,7 @@ run_sim)
 import json, sys
 d = json.load(open(sys.argv[1]))
 rows = {t['name']: t for t in d['threads']}
-for name in ('tracking', 'supervisor', 'reconstruct'):
+for name in ("tracking", "supervisor", "reconstruct"):
     assert name in rows, rows.keys()
 for name in ('tracking', 'supervisor'):
     a = rows[name]['allocations_after_start']

@@ -36,6 +36,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -133,6 +134,7 @@ struct ApplianceReport {
   bool room_gravity = false;            //!< found with gravity (2-D mode)
   std::uint64_t reconstructions = 0;
   std::size_t map_points = 0, map_keyframes = 0;
+  std::shared_ptr<const dsp::MapSnapshot> map;  //!< the final map (after a global adjustment)
   TrackingCounters tracking;
   DegradedCounters degraded;
   std::vector<PoseRecord> trajectory;  //!< every tracked frame's pose (world = first camera)
