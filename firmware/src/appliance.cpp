@@ -139,6 +139,7 @@ class PipelineSink final : public source::SensorSink, public drivers::ImuSampleS
   }
   void on_imu_sample(const ImuSample& s) noexcept override { on_imu(s); }
   void on_stereo(const StereoFrame& f) override {
+    last_delivered_t_ns_.store(f.t_ns, std::memory_order_relaxed);
     frames_.post(f);
     frames_in_.fetch_add(1, std::memory_order_release);
     tracking_.notify();
@@ -176,6 +177,10 @@ class PipelineSink final : public source::SensorSink, public drivers::ImuSampleS
   [[nodiscard]] std::uint64_t frames_in() const { return frames_in_.load(); }
   [[nodiscard]] std::uint64_t frames_overwritten() const { return frames_.overwritten(); }
   [[nodiscard]] std::uint64_t unpaired() const { return unpaired_.load(); }
+  /// Sensor time of the newest frame delivered (taken or not); -1 before the first.
+  [[nodiscard]] TimeNs last_delivered_t_ns() const {
+    return last_delivered_t_ns_.load(std::memory_order_relaxed);
+  }
 
  private:
   Wakeup& tracking_;
@@ -185,6 +190,7 @@ class PipelineSink final : public source::SensorSink, public drivers::ImuSampleS
   NewestMailbox<StereoFrame> frames_;
   Wakeup taken_;
   TimeNs last_imu_notify_t_ns_ = 0;
+  std::atomic<TimeNs> last_delivered_t_ns_{-1};
   std::atomic<std::uint64_t> imu_in_{0}, imu_dropped_{0}, frames_in_{0}, frames_taken_{0},
       unpaired_{0};
 };
@@ -437,13 +443,16 @@ class TrackingModule {
       heartbeat_ns_.store(monotonic_now_ns(), std::memory_order_relaxed);
       wakeups_.fetch_add(1, std::memory_order_relaxed);
       if (reset_requested_.exchange(false)) do_reset();
-      drain_imu();
+      // Frames first, each after the IMU samples up to its time (they arrived before it);
+      // then the samples after the newest frame. A tracker that fell behind thus never reads
+      // the IMU running ahead of a frame still waiting as a lost camera.
       while (pipeline_.take_frame(frame)) {
-        drain_imu();  // the samples up to the frame arrived before it
+        drain_imu(frame.t_ns);
         on_frame(frame);
         frame = StereoFrame{};  // give the buffers back now
         pipeline_.frame_done();
       }
+      drain_imu(std::numeric_limits<TimeNs>::max());
     }
     tl_allocation_counter = nullptr;
   }
@@ -492,9 +501,10 @@ class TrackingModule {
     std::atomic<std::uint64_t>* saved;
   };
 
-  void drain_imu() {
+  void drain_imu(TimeNs until_ns) {
     bool popped = false;
     while (ImuSample* s = pipeline_.imu_front()) {
+      if (s->t_ns > until_ns) break;
       const ImuSample sample = *s;
       pipeline_.imu_pop();
       popped = true;
@@ -516,7 +526,13 @@ class TrackingModule {
       event(s.t_ns, "IMU back: gravity-aligned walls and gyro prior again");
     }
     if (last_frame_t_ns_ < 0) return;
-    if (!camera_lost_ && s.t_ns - last_frame_t_ns_ > camera_timeout_ns_) {
+    // The camera is alive while frames arrive, tracked or not: in real time the newest
+    // delivered frame counts too (overwritten while tracking was busy). In lock step every
+    // frame is tracked in order, so the tracked one alone decides (repeatable).
+    const TimeNs last_seen_t_ns = options_.deterministic
+                                      ? last_frame_t_ns_
+                                      : std::max(last_frame_t_ns_, pipeline_.last_delivered_t_ns());
+    if (!camera_lost_ && s.t_ns - last_seen_t_ns > camera_timeout_ns_) {
       camera_lost_ = true;
       ++degraded_.camera_lost;
       event(s.t_ns, "camera lost: IMU-only orientation, last wall model kept");
@@ -1102,7 +1118,14 @@ ApplianceReport run_appliance(const BoardConfig& board, const ApplianceOptions& 
       tl_allocation_counter = nullptr;
     });
   }
-  source->start(pipeline, pipeline, realtime, stop_modules);
+  try {
+    source->start(pipeline, pipeline, realtime, stop_modules);  // live: opens the devices
+  } catch (...) {
+    // The consumers already run: stop them before unwinding joins them.
+    stop_modules.store(true, std::memory_order_release);
+    tracking_wakeup.notify();
+    throw;
+  }
   report.source = source->describe();
   {
     char line[700];
