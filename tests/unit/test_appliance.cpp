@@ -186,8 +186,8 @@ TEST(ApplianceHil, FaultSpecsParseAndBadOnesNameThemselves) {
 TEST(ApplianceSoak, TenMinutesOfLoopedReplayKeepMemoryFlat) {
   if (kSanitized || test::short_tests()) GTEST_SKIP() << "release builds on the host only";
   BoardConfig board = sim_board();
-  // A small panel: the renderer and its memory stay in the loop at a quarter of llvmpipe's
-  // cost per frame (CI runs this on 2 cores beside the other tests).
+  // A smaller panel than the sim board's: the renderer and its memory stay in the loop, with
+  // fewer pixels for llvmpipe (the replay's PNG decoding and tracking dominate the time).
   board.display.width_px = 640;
   board.display.height_px = 360;
   ApplianceOptions o = quiet_options();
