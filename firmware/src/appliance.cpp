@@ -27,6 +27,7 @@
 #include "wallar/drivers/recording/calibration_files.hpp"
 #include "wallar/drivers/recording/euroc.hpp"
 #include "wallar/dsp/imu/attitude_filter.hpp"
+#include "wallar/firmware/imu_attitude.hpp"
 #include "wallar/firmware/live_imu.hpp"
 #include "wallar/firmware/live_stereo.hpp"
 #include "wallar/firmware/periodic.hpp"
@@ -80,6 +81,11 @@ ThreadSpec spec_of(const char* name, bool realtime) {
   s.cpu = e.cpu;
   s.stack_bytes = e.stack_bytes;
   return s;
+}
+
+/// The camera's frame period (20 Hz when its rate is unknown).
+DurationNs frame_period_of(const CameraCalibration& cam) {
+  return cam.rate_hz > 0 ? static_cast<DurationNs>(1e9 / cam.rate_hz) : 50 * kNsPerMs;
 }
 
 void default_log(const std::string& line) { std::fprintf(stderr, "wallar: %s\n", line.c_str()); }
@@ -418,15 +424,8 @@ class TrackingModule {
         system_(rig, tracking),
         T_rect_body_(system_.tracker().T_body_rect().inverse()),
         R_body_imu_(rig.imu.T_body_imu.linear()),
-        frame_period_ns_(rig.cams[0].rate_hz > 0
-                             ? static_cast<DurationNs>(1e9 / rig.cams[0].rate_hz)
-                             : 50 * kNsPerMs) {
-    dsp::AttitudeFilterConfig filter_config;
-    if (rig.imu.rate_hz > 0.0) {
-      filter_config.init_window_samples =
-          static_cast<std::size_t>(std::max(20.0, std::round(rig.imu.rate_hz)));
-    }
-    filter_ = std::make_unique<dsp::AttitudeFilter>(filter_config);
+        frame_period_ns_(frame_period_of(rig.cams[0])) {
+    filter_ = std::make_unique<dsp::AttitudeFilter>(attitude_config_for(rig.imu));
     camera_timeout_ns_ = options.camera_timeout_ns > 0
                              ? options.camera_timeout_ns
                              : std::max<DurationNs>(4 * frame_period_ns_, 200 * kNsPerMs);
@@ -753,11 +752,7 @@ class ReplayModule final : public SourceModule {
   }
 
  private:
-  DurationNs period_ns() const {
-    return rec_.cams[0].calib.rate_hz > 0
-               ? static_cast<DurationNs>(1e9 / rec_.cams[0].calib.rate_hz)
-               : 50 * kNsPerMs;
-  }
+  DurationNs period_ns() const { return frame_period_of(rec_.cams[0].calib); }
   void accumulate(const source::ReplayStats& s) {
     const std::lock_guard lock(mutex_);
     if (loops_played_ == 0) {

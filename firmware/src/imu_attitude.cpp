@@ -7,11 +7,10 @@
 
 namespace wallar::firmware {
 
-dsp::AttitudeFilterConfig attitude_config_for(const recording::EurocRecording& rec) {
+dsp::AttitudeFilterConfig attitude_config_for(const ImuCalibration& imu) {
   dsp::AttitudeFilterConfig config;
-  if (rec.imu_calib.rate_hz > 0.0) {
-    config.init_window_samples =
-        static_cast<std::size_t>(std::max(20.0, std::round(rec.imu_calib.rate_hz)));
+  if (imu.rate_hz > 0.0) {
+    config.init_window_samples = static_cast<std::size_t>(std::max(20.0, std::round(imu.rate_hz)));
   }
   return config;
 }

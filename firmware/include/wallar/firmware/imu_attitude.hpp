@@ -39,9 +39,13 @@ struct AttitudeRun {
 /// initialised), an invalid row otherwise. Recordings and the live command build rows here.
 AttitudeRow attitude_row(const dsp::AttitudeFilter& filter, TimeNs t_ns, bool valid);
 
-/// The filter's configuration for a recording: the still window is one second at the IMU's
-/// rate from its sensor.yaml (200 samples when it has none).
-dsp::AttitudeFilterConfig attitude_config_for(const recording::EurocRecording& rec);
+/// The filter's configuration for an IMU: the still window is one second at its rate (at least
+/// 20 samples; the filter's default of 200 when the rate is unknown).
+dsp::AttitudeFilterConfig attitude_config_for(const ImuCalibration& imu);
+/// The same for a recording's IMU (its sensor.yaml).
+inline dsp::AttitudeFilterConfig attitude_config_for(const recording::EurocRecording& rec) {
+  return attitude_config_for(rec.imu_calib);
+}
 
 /// Runs the filter over rec.imu and calls `row` once per IMU sample, in order. Samples of the
 /// still window the filter starts from get the window's estimate (the device did not move);
