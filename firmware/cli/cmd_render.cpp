@@ -155,12 +155,8 @@ int run_render(const RenderArgs& a) {
     walls = firmware::read_walls_json(a.walls);
     walls_json = {{"source", a.walls}};
   } else {
-    dsp::RoomConfig config;
-    config.detector.threshold_m = kMapThresholdM;
-    config.gravity = Eigen::Vector3d(0.0, 0.0, -1.0);
-    config.viewpoints = track.keyframe_centres;
-    if (config.viewpoints.empty()) config.viewpoints.push_back(Eigen::Vector3d::Zero());
-    config.max_surfaces = 6;
+    const dsp::RoomConfig config = dsp::room_config_for_map(
+        track.keyframe_centres, Eigen::Vector3d(0.0, 0.0, -1.0), kMapThresholdM);
     dsp::RoomEstimator estimator(std::max<std::size_t>(track.map.size(), 1));
     const dsp::RoomResult room = estimator.estimate(track.map, config);
     walls = room.model;

@@ -357,14 +357,10 @@ class Reconstruction {
     if (!grown && !(force && n != last_points_) && !(force && down.has_value() != last_gravity_)) {
       return false;
     }
-    dsp::RoomConfig config;
-    config.detector.threshold_m = options_.wall_threshold_m;
+    dsp::RoomConfig config = dsp::room_config_for_map(
+        map.keyframe_centres, down, options_.wall_threshold_m, options_.max_surfaces);
     config.detector.method = options_.wall_method;
     config.detector.seed = options_.seed + runs_;
-    config.gravity = down;
-    config.viewpoints = map.keyframe_centres;
-    if (config.viewpoints.empty()) config.viewpoints.push_back(Eigen::Vector3d::Zero());
-    config.max_surfaces = options_.max_surfaces;
     const TimeNs t0 = monotonic_now_ns();
     dsp::RoomResult result =
         estimator_.estimate(map.points, config, previous_ ? &*previous_ : nullptr);

@@ -63,10 +63,8 @@ TEST(HeadsetViewEuroc, TheFloorOverlayCoversTheFloorInTheImage) {
   options.gravity_aligned = true;
   std::atomic<bool> stop{false};
   const firmware::TrackRecordingResult track = firmware::track_recording(rec, options, stop);
-  dsp::RoomConfig config;
-  config.detector.threshold_m = 0.04;
-  config.gravity = Eigen::Vector3d(0.0, 0.0, -1.0);
-  config.viewpoints = track.keyframe_centres;
+  const dsp::RoomConfig config =
+      dsp::room_config_for_map(track.keyframe_centres, Eigen::Vector3d(0.0, 0.0, -1.0), 0.04);
   dsp::RoomEstimator estimator(track.map.size());
   const dsp::RoomResult room = estimator.estimate(track.map, config);
   WallModel floor_only;

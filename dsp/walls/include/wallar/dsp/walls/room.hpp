@@ -66,6 +66,21 @@ class RoomEstimator {
   std::vector<Eigen::Vector3d> inliers_;
 };
 
+/// The search for a tracker's sparse map: the inlier band `threshold_m`, the key-frames' centres
+/// as the viewpoints of the backlier test (the origin when there are none), 2-D with `down`
+/// (gravity in the map's frame) when given, 3-D otherwise.
+inline RoomConfig room_config_for_map(const std::vector<Eigen::Vector3d>& keyframe_centres,
+                                      const std::optional<Eigen::Vector3d>& down,
+                                      double threshold_m, int max_surfaces = 6) {
+  RoomConfig config;
+  config.detector.threshold_m = threshold_m;
+  config.gravity = down;
+  config.viewpoints = keyframe_centres;
+  if (config.viewpoints.empty()) config.viewpoints.push_back(Eigen::Vector3d::Zero());
+  config.max_surfaces = max_surfaces;
+  return config;
+}
+
 // Convex hull of 2-D points: wallar/core/convex_hull.hpp (shared with the renderer).
 using wallar::convex_hull;
 
