@@ -54,7 +54,8 @@ std::int16_t segment_test(const GrayView& img, int x, int y, int t) {
   std::uint32_t bright_mask = 0, dark_mask = 0;
   int bright_sum = 0, dark_sum = 0;
   for (int i = 0; i < 16; ++i) {
-    const int v = p[kCircle[static_cast<std::size_t>(i)][1] * s + kCircle[static_cast<std::size_t>(i)][0]];
+    const int v =
+        p[kCircle[static_cast<std::size_t>(i)][1] * s + kCircle[static_cast<std::size_t>(i)][0]];
     if (v > hi) {
       bright_mask |= 1u << i;
       bright_sum += v - hi;
@@ -101,7 +102,8 @@ float zsad(const Template& tmpl, const GrayView& img, int x, int y, int hw) {
   std::size_t k = 0;
   for (int dy = -hw; dy <= hw; ++dy) {
     const std::uint8_t* r = img.row(y + dy) + x;
-    for (int dx = -hw; dx <= hw; ++dx, ++k) cost += std::abs(tmpl[k] - (static_cast<float>(r[dx]) - mean));
+    for (int dx = -hw; dx <= hw; ++dx, ++k)
+      cost += std::abs(tmpl[k] - (static_cast<float>(r[dx]) - mean));
   }
   return cost / static_cast<float>(n);
 }
@@ -111,6 +113,63 @@ float parabola_peak(float a, float b, float c) {
   const float den = a - 2.0f * b + c;
   if (!(den > 1e-6f)) return 0.0f;
   return std::clamp(0.5f * (a - c) / den, -0.5f, 0.5f);
+}
+
+/// Sub-pixel disparity by Gauss-Newton on the horizontal shift (zero-mean intensities, so an
+/// offset between the cameras' exposures does not bias it), from the integer match's parabola
+/// estimate. The SAD parabola locks toward whole pixels; this does not. Returns the refined
+/// disparity, or `d0` when the refinement leaves +-1 px of it or the window has no gradient.
+float refine_disparity(const GrayView& left, const GrayView& right, float u_px, int y, int hw,
+                       float d0) {
+  constexpr int kHw = 4;  // 9x9 window for the refinement
+  (void)hw;
+  if (y - kHw < 0 || y + kHw >= left.height) return d0;
+  std::array<float, (2 * kHw + 1) * (2 * kHw + 1)> tmpl{};
+  float mean_l = 0.0f;
+  std::size_t k = 0;
+  for (int dy = -kHw; dy <= kHw; ++dy) {
+    for (int dx = -kHw; dx <= kHw; ++dx, ++k) {
+      const float x = u_px + static_cast<float>(dx);
+      if (x < 1.0f || x >= static_cast<float>(left.width) - 2.0f) return d0;
+      tmpl[k] = left.sample(x, static_cast<float>(y + dy));
+      mean_l += tmpl[k];
+    }
+  }
+  const float n = static_cast<float>(k);
+  mean_l /= n;
+  float d = d0;
+  for (int it = 0; it < 6; ++it) {
+    float mean_r = 0.0f, sum_g = 0.0f, sum_gg = 0.0f, sum_ge = 0.0f, sum_e = 0.0f;
+    std::array<float, (2 * kHw + 1) * (2 * kHw + 1)> rv{}, gv{};
+    k = 0;
+    for (int dy = -kHw; dy <= kHw; ++dy) {
+      for (int dx = -kHw; dx <= kHw; ++dx, ++k) {
+        const float x = u_px - d + static_cast<float>(dx);
+        if (x < 2.0f || x >= static_cast<float>(right.width) - 3.0f) return d0;
+        const float yy = static_cast<float>(y + dy);
+        rv[k] = right.sample(x, yy);
+        gv[k] = 0.5f * (right.sample(x + 1.0f, yy) - right.sample(x - 1.0f, yy));
+        mean_r += rv[k];
+      }
+    }
+    mean_r /= n;
+    for (std::size_t i = 0; i < k; ++i) {
+      const float e = (rv[i] - mean_r) - (tmpl[i] - mean_l);
+      sum_g += gv[i];
+      sum_gg += gv[i] * gv[i];
+      sum_ge += gv[i] * e;
+      sum_e += e;
+    }
+    // Zero-mean gradients (the mean is removed from the residual too).
+    const float gg = sum_gg - sum_g * sum_g / n;
+    if (!(gg > 1e-3f * n)) return d0;
+    // r(d) = R(u - d) - L, dr/dd = -g: the Gauss-Newton step is +sum(g e) / sum(g g).
+    const float step = (sum_ge - sum_g * sum_e / n) / gg;
+    d += step;
+    if (std::abs(d - d0) > 1.0f || !std::isfinite(d)) return d0;
+    if (std::abs(step) < 0.005f) break;
+  }
+  return d;
 }
 
 }  // namespace
@@ -249,7 +308,8 @@ std::optional<float> match_along_row(const GrayView& left, const GrayView& right
   if (c0 > params.max_cost_per_px || best == d_min || best == d_max) return std::nullopt;
   float second = std::numeric_limits<float>::infinity();
   for (int d = d_min; d <= d_max; ++d) {
-    if (std::abs(d - best) > 1) second = std::min(second, cost[static_cast<std::size_t>(d - d_min)]);
+    if (std::abs(d - best) > 1)
+      second = std::min(second, cost[static_cast<std::size_t>(d - d_min)]);
   }
   if (c0 > params.uniqueness * second) return std::nullopt;
   // Left-right check: the right patch, searched back along the left row, lands where we began.
@@ -269,9 +329,9 @@ std::optional<float> match_along_row(const GrayView& left, const GrayView& right
     return std::nullopt;
   }
   const std::size_t i = static_cast<std::size_t>(best - d_min);
-  const float disparity =
-      static_cast<float>(best) + parabola_peak(cost[i - 1], cost[i], cost[i + 1]) +
-      (u_px - static_cast<float>(xl));
+  float disparity = static_cast<float>(best) + parabola_peak(cost[i - 1], cost[i], cost[i + 1]) +
+                    (u_px - static_cast<float>(xl));
+  if (params.subpixel_refine) disparity = refine_disparity(left, right, u_px, y, hw, disparity);
   if (disparity < params.min_disparity_px) return std::nullopt;
   return disparity;
 }
@@ -286,37 +346,58 @@ bool extract_patch(const GrayView& image, float u_px, float v_px, Patch8& out) {
 }
 
 std::optional<std::pair<float, float>> search_patch(const GrayView& image, const Patch8& patch,
-                                                   float u_px, float v_px, int radius,
-                                                   float* cost) {
+                                                    float u_px, float v_px, int radius,
+                                                    float* cost) {
   constexpr int kMaxRadius = 48;
   radius = std::clamp(radius, 1, kMaxRadius);
   const int cx = static_cast<int>(std::lround(u_px)), cy = static_cast<int>(std::lround(v_px));
   const int x0 = std::max(cx - radius, 5), x1 = std::min(cx + radius, image.width - 5);
   const int y0 = std::max(cy - radius, 5), y1 = std::min(cy + radius, image.height - 5);
   if (x1 - x0 < 2 || y1 - y0 < 2) return std::nullopt;
-  int patch_sum = 0;
-  for (std::uint8_t v : patch.px) patch_sum += v;
+  // Zero-mean, gain-normalised SAD: the window's deviations are scaled to the patch's contrast,
+  // so an exposure or gain change since the key-frame does not count as a mismatch, while a
+  // window without texture (a dark frame, a blank wall) cannot match a textured patch.
+  std::array<float, 64> p{};
+  float patch_mean = 0.0f;
+  for (std::size_t i = 0; i < 64; ++i) patch_mean += patch.px[i];
+  patch_mean /= 64.0f;
+  float patch_mad = 0.0f;
+  for (std::size_t i = 0; i < 64; ++i) {
+    p[i] = static_cast<float>(patch.px[i]) - patch_mean;
+    patch_mad += std::abs(p[i]);
+  }
+  patch_mad /= 64.0f;
+  if (!(patch_mad > 0.5f)) return std::nullopt;  // a flat patch matches anything
   std::array<float, (2 * kMaxRadius + 1) * (2 * kMaxRadius + 1)> costs;  // 37 KB of stack
   const int w = x1 - x0 + 1;
   int best_x = x0, best_y = y0;
   float best = std::numeric_limits<float>::infinity();
+  std::array<float, 64> win{};
   for (int y = y0; y <= y1; ++y) {
     for (int x = x0; x <= x1; ++x) {
       int sum = 0;
       for (int r = 0; r < 8; ++r) {
         const std::uint8_t* row = image.row(y - 4 + r) + (x - 4);
-        for (int c = 0; c < 8; ++c) sum += row[c];
-      }
-      const float offset = static_cast<float>(patch_sum - sum) / 64.0f;
-      float c = 0.0f;
-      for (int r = 0; r < 8; ++r) {
-        const std::uint8_t* row = image.row(y - 4 + r) + (x - 4);
-        for (int k = 0; k < 8; ++k) {
-          c += std::abs(static_cast<float>(patch.px[8 * r + k]) - static_cast<float>(row[k]) -
-                        offset);
+        for (int c = 0; c < 8; ++c) {
+          win[static_cast<std::size_t>(8 * r + c)] = row[c];
+          sum += row[c];
         }
       }
-      c /= 64.0f;
+      const float mean = static_cast<float>(sum) / 64.0f;
+      float mad = 0.0f;
+      for (float& v : win) {
+        v -= mean;
+        mad += std::abs(v);
+      }
+      mad /= 64.0f;
+      float c = std::numeric_limits<float>::infinity();
+      // Gains within 1/3..3 of the patch's contrast are an exposure change; beyond, not a match.
+      if (mad > patch_mad * (1.0f / 3.0f) && mad < patch_mad * 3.0f) {
+        const float gain = patch_mad / mad;
+        c = 0.0f;
+        for (std::size_t i = 0; i < 64; ++i) c += std::abs(win[i] * gain - p[i]);
+        c /= 64.0f;
+      }
       costs[static_cast<std::size_t>((y - y0) * w + (x - x0))] = c;
       if (c < best) {
         best = c;
@@ -325,10 +406,16 @@ std::optional<std::pair<float, float>> search_patch(const GrayView& image, const
       }
     }
   }
+  if (!std::isfinite(best)) return std::nullopt;
   auto at = [&](int x, int y) { return costs[static_cast<std::size_t>((y - y0) * w + (x - x0))]; };
   float du = 0.0f, dv = 0.0f;
-  if (best_x > x0 && best_x < x1) du = parabola_peak(at(best_x - 1, best_y), best, at(best_x + 1, best_y));
-  if (best_y > y0 && best_y < y1) dv = parabola_peak(at(best_x, best_y - 1), best, at(best_x, best_y + 1));
+  const auto finite3 = [](float a, float b, float c) {
+    return std::isfinite(a) && std::isfinite(b) && std::isfinite(c);
+  };
+  if (best_x > x0 && best_x < x1 && finite3(at(best_x - 1, best_y), best, at(best_x + 1, best_y)))
+    du = parabola_peak(at(best_x - 1, best_y), best, at(best_x + 1, best_y));
+  if (best_y > y0 && best_y < y1 && finite3(at(best_x, best_y - 1), best, at(best_x, best_y + 1)))
+    dv = parabola_peak(at(best_x, best_y - 1), best, at(best_x, best_y + 1));
   if (cost != nullptr) *cost = best;
   return std::pair<float, float>{static_cast<float>(best_x) + du, static_cast<float>(best_y) + dv};
 }

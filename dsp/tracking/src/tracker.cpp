@@ -271,7 +271,10 @@ std::optional<float> Tracker::Impl::right_u(float u, float v, double depth_hint)
     d_min = static_cast<int>(std::floor(d * 0.8)) - 3;
     d_max = static_cast<int>(std::ceil(d * 1.25)) + 3;
   } else {
-    d_min = static_cast<int>(std::floor(K.f_px * K.baseline_m / config.max_depth_m));
+    // The whole row from (almost) infinity: a search window that stopped at the far depth limit
+    // would hand a point beyond it the best wrong match inside (repeated facades, fences). The
+    // depth limits are applied to the match found.
+    d_min = 0;
     d_max = static_cast<int>(std::ceil(K.f_px * K.baseline_m / config.min_depth_m));
   }
   const std::optional<float> d =
@@ -376,6 +379,7 @@ void Tracker::Impl::stage1(const SE3d& prior, TrackResult& result) {
     const std::optional<float> ur = right_u(u, v, depth);
     PoseObservation o;
     o.p_world = p.p_world;
+    o.sigma_m = p.sigma_m;
     o.u_px = u;
     o.v_px = v;
     o.u_right_px = ur ? *ur : NAN;
@@ -412,6 +416,7 @@ void Tracker::Impl::stage2(int radius, TrackResult& result, const KeyframeRecord
     const std::optional<float> ur = right_u(hit->first, hit->second, depth);
     PoseObservation o;
     o.p_world = p.p_world;
+    o.sigma_m = p.sigma_m;
     o.u_px = hit->first;
     o.v_px = hit->second;
     o.u_right_px = ur ? *ur : NAN;
@@ -487,9 +492,11 @@ bool Tracker::Impl::need_keyframe() const {
     depths[n++] = static_cast<float>((T_cw * points[static_cast<std::size_t>(tracks[i].point)].p_world).z());
   }
   if (n == 0) return true;
-  std::nth_element(depths.begin(), depths.begin() + static_cast<std::ptrdiff_t>(n / 2),
+  const std::size_t q = std::min(n - 1, static_cast<std::size_t>(
+                                            config.keyframe_depth_quantile * static_cast<double>(n)));
+  std::nth_element(depths.begin(), depths.begin() + static_cast<std::ptrdiff_t>(q),
                    depths.begin() + static_cast<std::ptrdiff_t>(n));
-  const double median_depth = std::max(0.5, static_cast<double>(depths[n / 2]));
+  const double median_depth = std::max(0.5, static_cast<double>(depths[q]));
   const SE3d T_wc = T_cw.inverse();
   for (const KeyframeRecord& k : keyframes) {
     if (k.id < 0) continue;

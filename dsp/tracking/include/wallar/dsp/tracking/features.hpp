@@ -28,14 +28,14 @@ struct Corner {
 };
 
 struct DetectorParams {
-  int threshold = 20;          //!< starting segment-test threshold [grey levels]
+  int threshold = 20;  //!< starting segment-test threshold [grey levels]
   int threshold_min = 6;
   int threshold_max = 80;
   int target_raw_corners = 2000;  //!< corners before bucketing that the adaptation aims at
   int bucket_px = 48;             //!< bucket side
   int per_bucket = 4;             //!< at most this many features (tracked + new) per bucket
   int border_px = 8;
-  float min_shi_tomasi = 20.0f;   //!< weaker corners are dropped
+  float min_shi_tomasi = 20.0f;  //!< weaker corners are dropped
 };
 
 class CornerDetector {
@@ -68,11 +68,14 @@ class CornerDetector {
 float shi_tomasi_score(const GrayView& image, int x, int y, int half = 3);
 
 struct StereoMatchParams {
-  int half_window = 3;              //!< 7x7 patches
-  float max_cost_per_px = 12.0f;    //!< zero-mean SAD per pixel
-  float uniqueness = 0.9f;          //!< best / second best cost (outside +-1 px) must be below
+  int half_window = 3;            //!< 7x7 patches
+  float max_cost_per_px = 12.0f;  //!< zero-mean SAD per pixel
+  float uniqueness = 0.9f;        //!< best / second best cost (outside +-1 px) must be below
   float lr_tolerance_px = 1.0f;
-  float min_disparity_px = 0.5f;    //!< parallax limit (depth limit at infinity)
+  float min_disparity_px = 0.5f;  //!< parallax limit (depth limit at infinity)
+  /// Refine the sub-pixel disparity by Gauss-Newton on the shift (the cost parabola locks toward
+  /// whole pixels, which biases depths).
+  bool subpixel_refine = true;
 };
 
 /// Searches the right image's row `v` for the left pixel (u, v) over disparities
@@ -88,10 +91,13 @@ struct Patch8 {
 };
 /// Copies the 8x8 patch centred on (u, v) (nearest pixel); false when too close to the border.
 bool extract_patch(const GrayView& image, float u_px, float v_px, Patch8& out);
-/// Best zero-mean SAD position of `patch` within +-radius of (u, v), refined by parabolas;
-/// returns the mean cost per pixel through `cost`, or nothing when outside the image.
+/// Best position of `patch` within +-radius of (u, v) by zero-mean SAD with the window's contrast
+/// scaled to the patch's (gain-invariant; windows with under a third or over three times the
+/// patch's contrast do not match), refined by parabolas. Returns the mean cost per pixel (grey
+/// levels of the patch) through `cost`, or nothing when outside the image, the patch is flat or
+/// no window has comparable contrast.
 std::optional<std::pair<float, float>> search_patch(const GrayView& image, const Patch8& patch,
-                                                   float u_px, float v_px, int radius,
-                                                   float* cost);
+                                                    float u_px, float v_px, int radius,
+                                                    float* cost);
 
 }  // namespace wallar::dsp

@@ -22,14 +22,25 @@ struct PoseObservation {
   Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
   float u_px = 0.0f, v_px = 0.0f;
   float u_right_px = NAN;  //!< NaN when the right eye did not see it
+  float sigma_m = 0.0f;    //!< the map point's position uncertainty (1 sigma, along the ray)
 };
 
 struct PoseParams {
   int ransac_iterations = 80;
-  double inlier_px = 2.0;       //!< reprojection error of an inlier (each coordinate's norm)
+  double inlier_px = 2.0;  //!< reprojection error of an inlier (each coordinate's norm)
   double huber_px = 1.0;
   int gn_iterations = 8;
   int min_inliers = 12;
+  /// Scale of the Cauchy pass over every observation that starts each polish [px]: a predicted
+  /// pose this far off is still pulled into place.
+  double wide_px = 6.0;
+  /// RANSAC hypotheses are scored with inlier_px times this (three points fix a pose roughly).
+  double hypothesis_radius_factor = 2.5;
+  /// Points sampled for a hypothesis need at least this disparity (a usable depth) [px].
+  double min_sample_disparity_px = 1.0;
+  /// Disparity measurement noise (1 sigma) [px]; with the map point's depth uncertainty it sets
+  /// how much the disparity residual counts (the stereo row of a far point weighs little).
+  double disparity_sigma_px = 0.5;
 };
 
 struct PoseResult {
@@ -40,10 +51,15 @@ struct PoseResult {
   bool from_ransac = false;  //!< a RANSAC hypothesis beat the prior
 };
 
-/// Squared reprojection error of one observation under T_cam_world (left only or stereo), or
-/// infinity when the point is behind the camera.
+/// Squared reprojection error of one observation under T_cam_world, or infinity when the point
+/// is behind the camera: the left image's (u, v) error plus, with a right match, the disparity
+/// error weighted by disparity_weight().
 double reprojection_error_sq(const StereoIntrinsics& K, const SE3d& T_cam_world,
-                             const PoseObservation& obs);
+                             const PoseObservation& obs, double disparity_sigma_px = 0.5);
+/// How much an observation's disparity residual counts (0..1]: the disparity noise against the
+/// noise plus what the map point's depth uncertainty (obs.sigma_m at depth_m) moves it by.
+double disparity_weight(const StereoIntrinsics& K, const PoseObservation& obs, double depth_m,
+                        double sigma_px);
 
 /// Robust pose. `prior` is the predicted T_cam_world (motion model or gyro). `inlier` (same
 /// length as `observations`) receives 1 for inliers. `seed` makes the sampling repeatable.

@@ -55,7 +55,10 @@ struct TrackerConfig {
   int max_keyframes = 128;      //!< key-frame records kept (a ring) for relocalisation
   int pyramid_levels = 3;
   double min_depth_m = 0.25, max_depth_m = 20.0;
-  double keyframe_distance_ratio = 0.12;  //!< of the median scene depth
+  double keyframe_distance_ratio = 0.12;  //!< of the scene depth at keyframe_depth_quantile
+  /// The quantile of the tracked points' depths that sets the key-frame distance: the near
+  /// structure, which leaves the view first (far points would space key-frames too widely).
+  double keyframe_depth_quantile = 0.5;
   double keyframe_angle_deg = 12.0;
   double keyframe_track_ratio = 0.5;  //!< fewer tracked points than this x max_tracks: key-frame
   int keyframe_min_frames = 5;  //!< ... but not sooner than this after the last (sparse scenes)
