@@ -513,6 +513,7 @@ class TrackingModule {
     if (s.publish_t_ns > 0) imu_latency_.record(monotonic_now_ns() - s.publish_t_ns);
     system_.on_imu(s);
     filter_->update(s);
+    if (filter_->initialized()) system_.set_gyro_bias(filter_->gyro_bias_rad_s());
     last_imu_t_ns_ = s.t_ns;
     imu_seen_ = true;
     if (imu_lost_) {

@@ -4,6 +4,9 @@
 #include "wallar/firmware/tracking.hpp"
 
 #include <chrono>
+#include <span>
+
+#include "wallar/dsp/imu/gyro_integration.hpp"
 
 namespace wallar::firmware {
 namespace {
@@ -47,6 +50,7 @@ TrackingSystem::TrackingSystem(const RigCalibration& rig, const TrackingOptions&
                            kMaxCorrectedKeyframes),
       gyro_(static_cast<std::size_t>(std::max(16, options.imu_capacity))) {
   T_rect_imu_ = tracker_.T_body_rect().inverse() * rig.imu.T_body_imu;
+  timeshift_cam_imu_ns_ = rig.imu.timeshift_cam_imu_ns;
   if (options_.mapping_thread) start_mapping();
 }
 
@@ -90,28 +94,28 @@ void TrackingSystem::on_imu(const ImuSample& sample) {
 dsp::RotationPrior TrackingSystem::gyro_prior(TimeNs t_ns) {
   dsp::RotationPrior prior;
   if (!options_.use_gyro || last_frame_t_ns_ < 0 || gyro_count_ < 2) return prior;
-  // Integrate the gyro over (last frame, this frame], midpoint rule, body frame.
-  Eigen::Quaterniond q_prev_cur = Eigen::Quaterniond::Identity();
-  const std::size_t first = (gyro_head_ + gyro_.size() - gyro_count_) % gyro_.size();
-  int used = 0;
-  for (std::size_t k = 1; k < gyro_count_; ++k) {
-    const ImuSample& a = gyro_[(first + k - 1) % gyro_.size()];
-    const ImuSample& b = gyro_[(first + k) % gyro_.size()];
-    const TimeNs t0 = std::max(a.t_ns, last_frame_t_ns_), t1 = std::min(b.t_ns, t_ns);
-    if (t1 <= t0) continue;
-    const Eigen::Vector3d w = 0.5 * (a.gyro_rad_s + b.gyro_rad_s);
-    const Eigen::Vector3d phi = w * ns_to_s(t1 - t0);
-    const double angle = phi.norm();
-    if (angle > 1e-12)
-      q_prev_cur = q_prev_cur * Eigen::Quaterniond(Eigen::AngleAxisd(angle, phi / angle));
-    ++used;
-  }
-  if (used == 0) return prior;
+  // The ring as two time-ordered spans (older, newer).
+  const std::size_t size = gyro_.size();
+  const std::size_t first = (gyro_head_ + size - gyro_count_) % size;
+  const std::span<const ImuSample> all(gyro_);
+  const std::span<const ImuSample> older =
+      first + gyro_count_ <= size ? all.subspan(first, gyro_count_) : all.subspan(first);
+  const std::span<const ImuSample> newer =
+      first + gyro_count_ <= size ? std::span<const ImuSample>() : all.first(gyro_head_);
+  dsp::GyroIntegrationOptions gi;
+  gi.timeshift_cam_imu_ns = timeshift_cam_imu_ns_;
+  const dsp::GyroDelta delta =
+      dsp::integrate_gyro(older, newer, last_frame_t_ns_, t_ns, gyro_bias_rad_s_, gi);
+  if (!delta.valid) return prior;
   // Into the rectified left camera: R_prev_cur(cam) = R_cam_imu R_prev_cur(imu) R_imu_cam.
   const Eigen::Quaterniond q_rect_imu(T_rect_imu_.linear());
-  prior.q_prev_cur = (q_rect_imu * q_prev_cur * q_rect_imu.conjugate()).normalized();
+  prior.q_prev_cur = (q_rect_imu * delta.q_start_end * q_rect_imu.conjugate()).normalized();
   prior.valid = true;
   return prior;
+}
+
+void TrackingSystem::set_gyro_bias(const Eigen::Vector3d& bias_rad_s) {
+  gyro_bias_rad_s_ = bias_rad_s;
 }
 
 dsp::TrackResult TrackingSystem::on_stereo(const StereoFrame& frame) {

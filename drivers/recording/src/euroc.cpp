@@ -219,6 +219,12 @@ ImuCalibration read_imu_sensor_yaml(const fs::path& path) {
   c.gyro_random_walk = root.at("gyroscope_random_walk").as_double();
   c.accel_noise_density = root.at("accelerometer_noise_density").as_double();
   c.accel_random_walk = root.at("accelerometer_random_walk").as_double();
+  // Optional (Kalibr's name, seconds): t_imu = t_cam + timeshift_cam_imu.
+  if (const config::YamlNode* shift = root.find("timeshift_cam_imu")) {
+    const double s = shift->as_double();
+    if (!std::isfinite(s) || std::abs(s) > 1.0) shift->fail("must be within +-1 s");
+    c.timeshift_cam_imu_ns = static_cast<std::int64_t>(std::llround(s * 1e9));
+  }
   return c;
 }
 
@@ -369,6 +375,10 @@ void write_imu_sensor_yaml(const fs::path& path, const ImuCalibration& c) {
     << "  # [ m / s^2 / sqrt(Hz) ]\n"
     << "accelerometer_random_walk: " << format_euroc_double(c.accel_random_walk)
     << "    # [ m / s^3 / sqrt(Hz) ]\n";
+  if (c.timeshift_cam_imu_ns != 0) {
+    s << "\n# camera-IMU time offset (Kalibr): t_imu = t_cam + timeshift_cam_imu [s]\n"
+      << "timeshift_cam_imu: " << format_euroc_double(ns_to_s(c.timeshift_cam_imu_ns)) << "\n";
+  }
   write_text_file(path, s.str());
 }
 

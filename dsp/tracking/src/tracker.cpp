@@ -38,6 +38,21 @@ void KeyframeMessage::copy_from(const KeyframeMessage& other) {
   for (std::int32_t point : other.culled) culled.push_back(point);
 }
 
+SE3d predict_camera_pose(const SE3d& T_cw_last, const SE3d& velocity, const RotationPrior& gyro) {
+  const Eigen::Matrix3d& R_last = T_cw_last.linear();
+  const Eigen::Vector3d c_last = -R_last.transpose() * T_cw_last.translation();
+  const SE3d T_cw_before = velocity.inverse() * T_cw_last;
+  const Eigen::Vector3d c_before =
+      -T_cw_before.linear().transpose() * T_cw_before.translation();
+  const Eigen::Vector3d c_pred = c_last + (c_last - c_before);
+  const Eigen::Matrix3d R_cur_last =
+      gyro.valid ? gyro.q_prev_cur.conjugate().toRotationMatrix() : velocity.linear();
+  SE3d T = SE3d::Identity();
+  T.linear() = R_cur_last * R_last;
+  T.translation() = -T.linear() * c_pred;
+  return orthonormalised(T);
+}
+
 namespace {
 
 constexpr int kThumbBlock = 16;  //!< thumbnails average 16x16 blocks (PTAM's small blurry image)
@@ -618,10 +633,7 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
     t3 = t4 = m.now();
   } else {
     // Prediction: constant velocity, with the gyro's rotation when given.
-    SE3d prior = orthonormalised(m.velocity * m.T_cw);
-    if (gyro.valid) {
-      prior.linear() = gyro.q_prev_cur.conjugate().toRotationMatrix() * m.T_cw.linear();
-    }
+    const SE3d prior = predict_camera_pose(m.T_cw, m.velocity, gyro);
     bool ok = false;
     if (m.state == TrackingState::kTracking) {
       m.stage1(prior, result);
@@ -639,7 +651,10 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
         // The motion model may be what failed (the head stopped or turned back): once more from
         // the last pose, the gyro's rotation kept.
         SE3d still = m.T_cw_last;
-        if (gyro.valid) still.linear() = prior.linear();
+        if (gyro.valid) {
+          // Turned as the gyro says, about the last camera centre.
+          still = predict_camera_pose(m.T_cw_last, SE3d::Identity(), gyro);
+        }
         m.stage1(still, result);
         if (!m.obs.empty()) pose = m.solve(still, true);
       }

@@ -63,6 +63,9 @@ class TrackingSystem {
   TrackingSystem& operator=(const TrackingSystem&) = delete;
 
   void on_imu(const ImuSample& sample);
+  /// The gyro bias the attitude filter estimates, subtracted from the rates of the rotation
+  /// prior (zero until set).
+  void set_gyro_bias(const Eigen::Vector3d& bias_rad_s);
   dsp::TrackResult on_stereo(const StereoFrame& frame);
   /// Stops the mapping thread after it has taken every key-frame, runs a global bundle
   /// adjustment and returns the final map.
@@ -90,6 +93,8 @@ class TrackingSystem {
   dsp::Tracker tracker_;
   std::unique_ptr<dsp::Mapper> mapper_;
   SE3d T_rect_imu_ = SE3d::Identity();
+  std::int64_t timeshift_cam_imu_ns_ = 0;  //!< t_imu = t_cam + this
+  Eigen::Vector3d gyro_bias_rad_s_ = Eigen::Vector3d::Zero();
   SpscRing<dsp::KeyframeMessage> keyframes_;
   SpscRing<dsp::MapCorrection> corrections_;
   dsp::MapCorrection lockstep_correction_;

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,9 @@ struct ImuCalibration {
   double gyro_random_walk = 0.0;     //!< [rad/s^2/sqrt(Hz)]
   double accel_noise_density = 0.0;  //!< [m/s^2/sqrt(Hz)]
   double accel_random_walk = 0.0;    //!< [m/s^3/sqrt(Hz)]
+  /// Camera-IMU time offset: a sample stamped t_imu was taken at camera time t_imu - this
+  /// (Kalibr's timeshift_cam_imu: t_imu = t_cam + shift) [ns].
+  std::int64_t timeshift_cam_imu_ns = 0;
   SE3d T_body_imu = SE3d::Identity();
 };
 

@@ -176,6 +176,15 @@ struct RotationPrior {
   Eigen::Quaterniond q_prev_cur = Eigen::Quaterniond::Identity();
 };
 
+/// The predicted pose (T_cam_world) of the next frame from the last one, `T_cw_last`, and the
+/// last frame-to-frame motion `velocity` (T_cam(last)_cam(before)): the camera centre moves on
+/// by its last displacement in the world (constant velocity); the rotation is the gyro's when
+/// given, else the last frame-to-frame rotation again. Composing the relative motion keeps the
+/// centre where the motion puts it, wherever the camera is (replacing the rotation of a
+/// world-to-camera transform and keeping its translation would swing the centre about the
+/// world origin by the turn's angle).
+SE3d predict_camera_pose(const SE3d& T_cw_last, const SE3d& velocity, const RotationPrior& gyro);
+
 class Tracker {
  public:
   using Clock = std::int64_t (*)();

@@ -1,0 +1,44 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file gyro_integration.hpp
+/// @brief The rotation the gyro measured between two camera times: bias-corrected rates
+/// integrated over the interval, on the IMU's clock shifted by the camera-IMU time offset.
+///
+/// Time: the interval is given in camera time; a sample stamped t_imu was taken at camera time
+/// t_imu - timeshift_cam_imu_ns (Kalibr's convention: t_imu = t_cam + timeshift). Between two
+/// samples the rate is their mean (midpoint rule); an interval end past the newest sample is
+/// covered by holding its rate for at most `max_extrapolation_ns`.
+///
+/// Threading: pure functions; nothing allocates.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <span>
+
+#include "wallar/core/imu_sample.hpp"
+#include "wallar/core/time.hpp"
+
+namespace wallar::dsp {
+
+struct GyroDelta {
+  /// R_imu(t0)_imu(t1): vectors of the IMU frame at t1 into the IMU frame at t0.
+  Eigen::Quaterniond q_start_end = Eigen::Quaterniond::Identity();
+  double covered_s = 0.0;  //!< the part of the interval the samples (and extrapolation) cover
+  int samples = 0;         //!< samples that contributed
+  /// The samples cover at least `min_coverage` of the interval.
+  bool valid = false;
+};
+
+struct GyroIntegrationOptions {
+  std::int64_t timeshift_cam_imu_ns = 0;  //!< t_imu = t_cam + this
+  DurationNs max_extrapolation_ns = 20 * kNsPerMs;
+  double min_coverage = 0.8;
+};
+
+/// Integrates the samples of `older` then `newer` (one time-ordered sequence split in two, as a
+/// ring buffer holds it) over camera times (t0_cam_ns, t1_cam_ns], subtracting `bias_rad_s`.
+GyroDelta integrate_gyro(std::span<const ImuSample> older, std::span<const ImuSample> newer,
+                         TimeNs t0_cam_ns, TimeNs t1_cam_ns, const Eigen::Vector3d& bias_rad_s,
+                         const GyroIntegrationOptions& options = {});
+
+}  // namespace wallar::dsp
