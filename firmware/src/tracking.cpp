@@ -10,7 +10,9 @@
 
 namespace wallar::firmware {
 namespace {
-constexpr std::size_t kKeyframeSlots = 4;
+/// Key-frames queued for the mapper: when it falls this far behind the tracker makes no more
+/// key-frames (it tracks on the map it has, counted) until the mapper catches up.
+constexpr std::size_t kKeyframeSlots = 16;
 constexpr std::size_t kCorrectionSlots = 4;
 constexpr int kKeyframesPerGlobalAdjustment = 5;
 /// Key-frame poses one correction carries (the tracker keeps fewer records than this).
@@ -128,9 +130,13 @@ dsp::TrackResult TrackingSystem::on_stereo(const StereoFrame& frame) {
     }
   }
   const dsp::RotationPrior prior = gyro_prior(frame.t_ns);
+  // A key-frame only when the mapper can take it: never one the map would not hear of.
+  dsp::KeyframeMessage* slot = options_.mapping_thread ? keyframes_.producer_slot() : nullptr;
+  tracker_.set_keyframes_allowed(!options_.mapping_thread || slot != nullptr);
   const dsp::TrackResult result =
       tracker_.track(frame.t_ns, frame.left.image, frame.right.image, prior);
   ++counters_.frames;
+  counters_.stale_updates += static_cast<std::uint64_t>(result.stale_updates);
   if (result.rejected != nullptr) {
     ++counters_.rejected_frames;
     return result;
@@ -138,15 +144,14 @@ dsp::TrackResult TrackingSystem::on_stereo(const StereoFrame& frame) {
   last_frame_t_ns_ = frame.t_ns;
   if (result.state == dsp::TrackingState::kLost) ++counters_.lost_frames;
   if (result.relocalised) ++counters_.relocalisations;
+  if (result.new_segment) ++counters_.new_segments;
+  if (result.map_full) ++counters_.map_full_keyframes;
+  if (result.keyframe_deferred) ++counters_.keyframes_deferred;
   if (const dsp::KeyframeMessage* kf = tracker_.pending_keyframe()) {
     ++counters_.keyframes;
     if (options_.mapping_thread) {
-      if (dsp::KeyframeMessage* slot = keyframes_.producer_slot()) {
-        slot->copy_from(*kf);
-        keyframes_.push();
-      } else {
-        ++counters_.keyframes_dropped;  // the mapper is behind; tracking does not wait
-      }
+      slot->copy_from(*kf);  // allowed above: the slot is there
+      keyframes_.push();
     } else {
       map_keyframe(*kf, lockstep_correction_);
       tracker_.apply(lockstep_correction_);
@@ -163,9 +168,20 @@ void TrackingSystem::map_keyframe(const dsp::KeyframeMessage& message, dsp::MapC
   const dsp::MapperStats stats = mapper_->local_adjust(out);
   const TimeNs t1 = monotonic_now_ns();
   local_adjustments_.fetch_add(1, std::memory_order_relaxed);
-  culled_.fetch_add(static_cast<std::uint64_t>(stats.culled), std::memory_order_relaxed);
+  note(stats);
   const std::lock_guard<std::mutex> lock(map_mutex_);
   mapping_times_.push_back(t1 - t0);
+}
+
+void TrackingSystem::note(const dsp::MapperStats& stats) {
+  culled_.fetch_add(static_cast<std::uint64_t>(stats.culled), std::memory_order_relaxed);
+  culled_keyframes_.fetch_add(static_cast<std::uint64_t>(stats.culled_keyframes),
+                              std::memory_order_relaxed);
+  map_keyframes_.store(static_cast<std::uint64_t>(mapper_->keyframe_count()),
+                       std::memory_order_relaxed);
+  map_points_.store(static_cast<std::uint64_t>(mapper_->points_count()),
+                    std::memory_order_relaxed);
+  stale_messages_.store(mapper_->stale_messages(), std::memory_order_relaxed);
 }
 
 void TrackingSystem::publish_map() {
@@ -200,7 +216,7 @@ void TrackingSystem::mapping_loop() {
         const dsp::MapperStats stats = mapper_->global_adjust(*out);
         corrections_.push();
         global_adjustments_.fetch_add(1, std::memory_order_relaxed);
-        culled_.fetch_add(static_cast<std::uint64_t>(stats.culled), std::memory_order_relaxed);
+        note(stats);
         publish_map();
         since_global = 0;
         continue;
@@ -232,7 +248,7 @@ std::shared_ptr<const dsp::MapSnapshot> TrackingSystem::finish() {
     const dsp::MapperStats stats = mapper_->global_adjust(lockstep_correction_);
     tracker_.apply(lockstep_correction_);
     global_adjustments_.fetch_add(1, std::memory_order_relaxed);
-    culled_.fetch_add(static_cast<std::uint64_t>(stats.culled), std::memory_order_relaxed);
+    note(stats);
   }
   publish_map();
   return latest_map();
@@ -248,6 +264,10 @@ TrackingCounters TrackingSystem::counters() const {
   c.local_adjustments = local_adjustments_.load();
   c.global_adjustments = global_adjustments_.load();
   c.culled_points = culled_.load();
+  c.culled_keyframes = culled_keyframes_.load();
+  c.map_keyframes = map_keyframes_.load();
+  c.map_points = map_points_.load();
+  c.stale_updates += stale_messages_.load();
   return c;
 }
 

@@ -4,6 +4,7 @@
 #include "wallar/dsp/tracking/features.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <array>
 #include <cmath>
 #include <cstdlib>
@@ -418,6 +419,72 @@ std::optional<std::pair<float, float>> search_patch(const GrayView& image, const
     dv = parabola_peak(at(best_x, best_y - 1), best, at(best_x, best_y + 1));
   if (cost != nullptr) *cost = best;
   return std::pair<float, float>{static_cast<float>(best_x) + du, static_cast<float>(best_y) + dv};
+}
+
+namespace {
+
+/// The 256 point pairs at half resolution, drawn once: Gaussian (sigma 5 px at half resolution,
+/// BRIEF's G II) clipped to the pattern's radius.
+struct DescriptorPattern {
+  std::array<std::array<std::int8_t, 4>, 256> pairs{};  // x1, y1, x2, y2
+  DescriptorPattern() {
+    std::uint64_t state = 0x5EED0F0B81EFULL;
+    const auto next = [&state] {
+      std::uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+      z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+      z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+      return static_cast<double>((z ^ (z >> 31)) >> 11) * (1.0 / 9007199254740992.0);
+    };
+    const auto gauss = [&] {
+      // Box-Muller from two uniforms in (0, 1].
+      const double u1 = 1.0 - next(), u2 = next();
+      return std::sqrt(-2.0 * std::log(u1)) * std::cos(6.283185307179586 * u2);
+    };
+    constexpr double kSigma = 5.0;
+    constexpr int kMax = kDescriptorRadiusPx / 2 - 2;
+    for (auto& p : pairs) {
+      for (std::int8_t& c : p) {
+        const double v = std::clamp(std::round(gauss() * kSigma), -double{kMax}, double{kMax});
+        c = static_cast<std::int8_t>(v);
+      }
+    }
+  }
+};
+
+const DescriptorPattern& descriptor_pattern() {
+  static const DescriptorPattern pattern;
+  return pattern;
+}
+
+}  // namespace
+
+bool compute_descriptor(const GrayView& half, float u_px, float v_px, Descriptor256& out) {
+  const DescriptorPattern& pattern = descriptor_pattern();
+  // Level 1 of a 2x2-mean pyramid: full-resolution x maps to (x + 0.5) / 2 - 0.5.
+  const int cx = static_cast<int>(std::lround((u_px + 0.5f) * 0.5f - 0.5f));
+  const int cy = static_cast<int>(std::lround((v_px + 0.5f) * 0.5f - 0.5f));
+  constexpr int kReach = kDescriptorRadiusPx / 2;
+  if (cx - kReach < 0 || cy - kReach < 0 || cx + kReach + 1 >= half.width ||
+      cy + kReach + 1 >= half.height) {
+    return false;
+  }
+  const auto box = [&](int x, int y) {
+    const std::uint8_t* r0 = half.row(cy + y) + cx + x;
+    const std::uint8_t* r1 = r0 + half.stride;
+    return static_cast<int>(r0[0]) + r0[1] + r1[0] + r1[1];
+  };
+  out.bits = {};
+  for (std::size_t i = 0; i < pattern.pairs.size(); ++i) {
+    const auto& p = pattern.pairs[i];
+    if (box(p[0], p[1]) < box(p[2], p[3])) out.bits[i / 64] |= std::uint64_t{1} << (i % 64);
+  }
+  return true;
+}
+
+int hamming_distance(const Descriptor256& a, const Descriptor256& b) {
+  int d = 0;
+  for (std::size_t i = 0; i < 4; ++i) d += std::popcount(a.bits[i] ^ b.bits[i]);
+  return d;
 }
 
 }  // namespace wallar::dsp

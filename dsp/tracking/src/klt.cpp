@@ -3,8 +3,10 @@
 /// @brief Coarse-to-fine translational Lucas-Kanade.
 #include "wallar/dsp/tracking/klt.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <span>
 
 namespace wallar::dsp {
 namespace {
@@ -20,12 +22,40 @@ float from_level(float x, int level) {
 }
 }  // namespace
 
+Brightness estimate_brightness(std::span<float> prev_samples, std::span<float> cur_samples,
+                               float min_change) {
+  Brightness out;
+  const std::size_t n = std::min(prev_samples.size(), cur_samples.size());
+  if (n < 16) return out;
+  // Medians and median absolute deviations: robust to the samples whose prediction was wrong.
+  const auto median = [](std::span<float> v) {
+    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    return *mid;
+  };
+  const std::span<float> a = prev_samples.first(n), b = cur_samples.first(n);
+  const float ma = median(a), mb = median(b);
+  for (float& x : a) x = std::abs(x - ma);
+  for (float& x : b) x = std::abs(x - mb);
+  const float sa = median(a), sb = median(b);
+  if (!(sa > 0.5f) || !(sb > 0.5f)) return out;
+  const float gain = std::clamp(sb / sa, 1.0f / 3.0f, 3.0f);
+  const float bias = mb - gain * ma;
+  // Small differences are the scene, not the exposure: left alone.
+  if (std::abs(gain - 1.0f) < min_change && std::abs(mb - ma) < 255.0f * min_change) return out;
+  out.gain = gain;
+  out.bias = bias;
+  return out;
+}
+
 bool klt_track(const Pyramid& prev, const Pyramid& cur, float u0, float v0, float& u, float& v,
-               const KltParams& params) {
+               const KltParams& params, const Brightness& brightness) {
   const int hw = params.half_window > kMaxHalf ? kMaxHalf : params.half_window;
   const float border = static_cast<float>(hw + 2);
   std::array<float, kMaxWindow> tmpl, gx, gy;
   float mean_abs = 0.0f;
+  // The frames' brightness relation (an exposure or gain step), held for every window.
+  const float gain = std::clamp(brightness.gain, 1.0f / 3.0f, 3.0f), bias = brightness.bias;
   for (int level = prev.levels() - 1; level >= 0; --level) {
     const GrayView P = prev.level(level), C = cur.level(level);
     const float px = to_level(u0, level), py = to_level(v0, level);
@@ -60,14 +90,16 @@ bool klt_track(const Pyramid& prev, const Pyramid& cur, float u0, float v0, floa
       k = 0;
       for (int dy = -hw; dy <= hw; ++dy) {
         for (int dx = -hw; dx <= hw; ++dx, ++k) {
-          const float e = C.sample(qx + static_cast<float>(dx), qy + static_cast<float>(dy)) - tmpl[k];
+          const float e = C.sample(qx + static_cast<float>(dx), qy + static_cast<float>(dy)) -
+                          (gain * tmpl[k] + bias);
           ex += e * gx[k];
           ey += e * gy[k];
           mean_abs += std::abs(e);
         }
       }
-      mean_abs /= n;
-      const float sx = (c * ex - b * ey) / det, sy = (a * ey - b * ex) / det;
+      mean_abs /= n * gain;  // in the template's grey levels
+      // The template's gradients scale with the gain too.
+      const float sx = (c * ex - b * ey) / (det * gain), sy = (a * ey - b * ex) / (det * gain);
       qx -= sx;
       qy -= sy;
       if (sx * sx + sy * sy < params.epsilon_px * params.epsilon_px) break;

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file mapper.cpp
-/// @brief Key-frame store, local/global bundle adjustment windows, culling, snapshots.
+/// @brief Key-frame store, bounded local/global bundle adjustment windows, point and key-frame
+/// culling, point generations, map segments, snapshots.
 #include "wallar/dsp/tracking/mapper.hpp"
 
 #include <algorithm>
@@ -18,17 +19,25 @@ struct Observation {
 };
 struct PointRecord {
   std::int32_t id = -1;
+  std::uint32_t generation = 0;
   Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
   float sigma_m = 0.0f;
   float sigma0_m = 0.0f;  // from the creating stereo pair
   bool alive = true;
   std::vector<Observation> observations;
 };
+struct PointSlot {
+  std::int32_t index = -1;  // into points
+  std::uint32_t generation = 0;
+};
 struct MapperKeyframe {
   std::int32_t id = -1;
   TimeNs t_ns = 0;
   SE3d T_world_cam = SE3d::Identity();
-  std::vector<std::int32_t> points;  // indices into points
+  std::int32_t segment = 0;
+  bool segment_start = false;
+  bool alive = true;
+  std::vector<PointSlot> points;  // what it saw (a slot whose generation moved on is gone)
 };
 
 }  // namespace
@@ -36,12 +45,24 @@ struct MapperKeyframe {
 struct Mapper::Impl {
   StereoIntrinsics K;
   MapperConfig config;
-  std::vector<MapperKeyframe> keyframes;
+  std::vector<MapperKeyframe> keyframes;  // in order of arrival; dropped ones stay as tombstones
   std::vector<PointRecord> points;
   std::unordered_map<std::int32_t, std::int32_t> point_index;  // tracker id -> index
   std::uint64_t version = 0;
+  std::uint64_t culled_keyframes = 0;
+  std::uint64_t stale = 0;
+  int alive_keyframes = 0;
 
-  MapperStats adjust(int first_keyframe, int iterations, MapCorrection& out);
+  bool sees(const PointSlot& slot) const {
+    const PointRecord& p = points[static_cast<std::size_t>(slot.index)];
+    return p.alive && p.generation == slot.generation;
+  }
+  /// The newest `count` alive key-frames (indices, oldest first).
+  std::vector<int> newest_alive(int count) const;
+  MapperStats adjust(const std::vector<int>& window, int iterations, int max_fixed,
+                     MapCorrection& out);
+  void cull_redundant(const std::vector<int>& window, MapCorrection& out, MapperStats& stats);
+  void kill_point(PointRecord& p, MapCorrection& out, MapperStats& stats);
 };
 
 Mapper::Mapper(const StereoIntrinsics& K, const MapperConfig& config)
@@ -51,7 +72,14 @@ Mapper::Mapper(const StereoIntrinsics& K, const MapperConfig& config)
 }
 Mapper::~Mapper() = default;
 
-int Mapper::keyframe_count() const { return static_cast<int>(impl_->keyframes.size()); }
+int Mapper::keyframe_count() const { return impl_->alive_keyframes; }
+int Mapper::points_count() const {
+  int n = 0;
+  for (const PointRecord& p : impl_->points) n += p.alive ? 1 : 0;
+  return n;
+}
+std::uint64_t Mapper::culled_keyframes() const { return impl_->culled_keyframes; }
+std::uint64_t Mapper::stale_messages() const { return impl_->stale; }
 
 void Mapper::add_keyframe(const KeyframeMessage& message) {
   Impl& m = *impl_;
@@ -60,68 +88,124 @@ void Mapper::add_keyframe(const KeyframeMessage& message) {
   record.id = message.id;
   record.t_ns = message.t_ns;
   record.T_world_cam = message.T_world_cam;
-  for (std::int32_t id : message.culled) {
-    const auto it = m.point_index.find(id);
-    if (it != m.point_index.end()) m.points[static_cast<std::size_t>(it->second)].alive = false;
+  record.segment = message.segment;
+  record.segment_start = message.segment_start;
+  for (const PointRef& ref : message.culled) {
+    const auto it = m.point_index.find(ref.id);
+    if (it == m.point_index.end()) continue;
+    PointRecord& p = m.points[static_cast<std::size_t>(it->second)];
+    if (p.generation != ref.generation) {
+      ++m.stale;  // about an older point in that slot
+      continue;
+    }
+    p.alive = false;
   }
-  for (const NewMapPoint& p : message.new_points) {
-    auto [it, fresh] = m.point_index.try_emplace(p.point, static_cast<std::int32_t>(m.points.size()));
+  for (const NewMapPoint& np : message.new_points) {
+    auto [it, fresh] =
+        m.point_index.try_emplace(np.point, static_cast<std::int32_t>(m.points.size()));
+    PointRecord record_point{np.point, np.generation, np.p_world, np.sigma_m, np.sigma_m, true, {}};
     if (fresh) {
-      m.points.push_back(PointRecord{p.point, p.p_world, p.sigma_m, p.sigma_m, true, {}});
+      m.points.push_back(std::move(record_point));
     } else {
       // The tracker reused the id of a culled point: a new point in the old slot.
-      m.points[static_cast<std::size_t>(it->second)] = PointRecord{p.point, p.p_world, p.sigma_m, p.sigma_m, true, {}};
+      m.points[static_cast<std::size_t>(it->second)] = std::move(record_point);
     }
   }
   for (const KeyframeObservation& o : message.observations) {
     const auto it = m.point_index.find(o.point);
     if (it == m.point_index.end()) continue;
     PointRecord& p = m.points[static_cast<std::size_t>(it->second)];
+    if (p.generation != o.generation) {
+      ++m.stale;
+      continue;
+    }
     if (!p.alive) continue;
     p.observations.push_back(Observation{k, o.u_px, o.v_px, o.u_right_px});
-    record.points.push_back(it->second);
+    record.points.push_back(PointSlot{it->second, p.generation});
   }
   m.keyframes.push_back(std::move(record));
+  ++m.alive_keyframes;
   ++m.version;
 }
 
-MapperStats Mapper::Impl::adjust(int first_keyframe, int iterations, MapCorrection& out) {
+std::vector<int> Mapper::Impl::newest_alive(int count) const {
+  std::vector<int> out;
+  for (int k = static_cast<int>(keyframes.size()) - 1; k >= 0 && static_cast<int>(out.size()) < count;
+       --k) {
+    if (keyframes[static_cast<std::size_t>(k)].alive) out.push_back(k);
+  }
+  std::reverse(out.begin(), out.end());
+  return out;
+}
+
+void Mapper::Impl::kill_point(PointRecord& p, MapCorrection& out, MapperStats& stats) {
+  p.alive = false;
+  out.culled.push_back(PointRef{p.id, p.generation});
+  ++stats.culled;
+}
+
+MapperStats Mapper::Impl::adjust(const std::vector<int>& window, int iterations, int max_fixed,
+                                 MapCorrection& out) {
   out.clear();
   MapperStats stats;
-  stats.keyframes = static_cast<int>(keyframes.size());
+  stats.keyframes = alive_keyframes;
   for (const PointRecord& p : points) stats.points += p.alive ? 1 : 0;
-  if (static_cast<int>(keyframes.size()) < config.min_keyframes_for_ba) return stats;
-  first_keyframe = std::max(first_keyframe, 0);
-  // The points seen by the window, and every key-frame that saw them.
+  if (alive_keyframes < config.min_keyframes_for_ba || window.empty()) return stats;
+  // The points seen by the window.
   std::vector<std::int32_t> ba_point_of(points.size(), -1);
-  std::vector<std::int32_t> ba_keyframe_of(keyframes.size(), -1);
-  std::vector<BaKeyframe> ba_keyframes;
   std::vector<BaPoint> ba_points;
-  std::vector<std::int32_t> point_of_ba, keyframe_of_ba;
-  const auto add_keyframe_to_ba = [&](int k, bool fixed) {
-    if (ba_keyframe_of[static_cast<std::size_t>(k)] >= 0) return;
-    ba_keyframe_of[static_cast<std::size_t>(k)] = static_cast<std::int32_t>(ba_keyframes.size());
-    ba_keyframes.push_back(
-        BaKeyframe{keyframes[static_cast<std::size_t>(k)].T_world_cam.inverse(), fixed});
-    keyframe_of_ba.push_back(k);
-  };
-  for (int k = first_keyframe; k < static_cast<int>(keyframes.size()); ++k) {
-    add_keyframe_to_ba(k, k == 0);
-  }
-  for (int k = first_keyframe; k < static_cast<int>(keyframes.size()); ++k) {
-    for (std::int32_t pi : keyframes[static_cast<std::size_t>(k)].points) {
-      PointRecord& p = points[static_cast<std::size_t>(pi)];
-      if (!p.alive || ba_point_of[static_cast<std::size_t>(pi)] >= 0) continue;
-      ba_point_of[static_cast<std::size_t>(pi)] = static_cast<std::int32_t>(ba_points.size());
-      ba_points.push_back(BaPoint{p.p_world, false});
-      point_of_ba.push_back(pi);
-      for (const Observation& o : p.observations) add_keyframe_to_ba(o.keyframe, true);
+  std::vector<std::int32_t> point_of_ba;
+  std::vector<char> in_window(keyframes.size(), 0);
+  for (int k : window) in_window[static_cast<std::size_t>(k)] = 1;
+  for (int k : window) {
+    for (const PointSlot& slot : keyframes[static_cast<std::size_t>(k)].points) {
+      if (!sees(slot) || ba_point_of[static_cast<std::size_t>(slot.index)] >= 0) continue;
+      ba_point_of[static_cast<std::size_t>(slot.index)] =
+          static_cast<std::int32_t>(ba_points.size());
+      ba_points.push_back(BaPoint{points[static_cast<std::size_t>(slot.index)].p_world, false});
+      point_of_ba.push_back(slot.index);
     }
   }
-  // Gauge: at least one key-frame holds still.
-  bool any_fixed = false;
-  for (const BaKeyframe& k : ba_keyframes) any_fixed = any_fixed || k.fixed;
-  if (!any_fixed && !ba_keyframes.empty()) ba_keyframes.front().fixed = true;
+  // Key-frames outside the window that see those points hold still: the ones sharing the most.
+  std::unordered_map<int, int> shared;
+  for (std::int32_t pi : point_of_ba) {
+    for (const Observation& o : points[static_cast<std::size_t>(pi)].observations) {
+      if (!in_window[static_cast<std::size_t>(o.keyframe)]) ++shared[o.keyframe];
+    }
+  }
+  std::vector<std::pair<int, int>> outside(shared.begin(), shared.end());  // (key-frame, shared)
+  std::sort(outside.begin(), outside.end(), [](const auto& a, const auto& b) {
+    return a.second != b.second ? a.second > b.second : a.first > b.first;
+  });
+  if (static_cast<int>(outside.size()) > max_fixed) outside.resize(static_cast<std::size_t>(max_fixed));
+  std::vector<std::int32_t> ba_keyframe_of(keyframes.size(), -1);
+  std::vector<BaKeyframe> ba_keyframes;
+  std::vector<std::int32_t> keyframe_of_ba;
+  const auto add = [&](int k, bool fixed) {
+    ba_keyframe_of[static_cast<std::size_t>(k)] = static_cast<std::int32_t>(ba_keyframes.size());
+    ba_keyframes.push_back(BaKeyframe{keyframes[static_cast<std::size_t>(k)].T_world_cam.inverse(), fixed});
+    keyframe_of_ba.push_back(k);
+  };
+  // Each segment's first key-frame holds its gauge.
+  for (int k : window) add(k, keyframes[static_cast<std::size_t>(k)].segment_start);
+  std::sort(outside.begin(), outside.end());  // in key-frame order (repeatable)
+  for (const auto& [k, n] : outside) add(k, true);
+  (void)shared;
+  // Gauge: at least one key-frame of each segment in the adjustment holds still.
+  {
+    std::unordered_map<std::int32_t, bool> segment_fixed;
+    for (std::size_t b = 0; b < ba_keyframes.size(); ++b) {
+      const std::int32_t seg = keyframes[static_cast<std::size_t>(keyframe_of_ba[b])].segment;
+      segment_fixed[seg] = segment_fixed[seg] || ba_keyframes[b].fixed;
+    }
+    for (std::size_t b = 0; b < ba_keyframes.size(); ++b) {
+      const std::int32_t seg = keyframes[static_cast<std::size_t>(keyframe_of_ba[b])].segment;
+      if (!segment_fixed[seg]) {
+        ba_keyframes[b].fixed = true;  // the oldest of its segment here
+        segment_fixed[seg] = true;
+      }
+    }
+  }
   std::vector<BaObservation> ba_obs;
   for (std::size_t bp = 0; bp < point_of_ba.size(); ++bp) {
     for (const Observation& o : points[static_cast<std::size_t>(point_of_ba[bp])].observations) {
@@ -138,6 +222,7 @@ MapperStats Mapper::Impl::adjust(int first_keyframe, int iterations, MapCorrecti
   stats.iterations = r.iterations;
   stats.initial_cost = r.initial_cost;
   stats.final_cost = r.final_cost;
+  stats.adjusted_keyframes = 0;
   for (std::size_t bk = 0; bk < ba_keyframes.size(); ++bk) {
     if (ba_keyframes[bk].fixed) continue;
     MapperKeyframe& k = keyframes[static_cast<std::size_t>(keyframe_of_ba[bk])];
@@ -149,9 +234,8 @@ MapperStats Mapper::Impl::adjust(int first_keyframe, int iterations, MapCorrecti
   std::vector<double> error_sum(ba_points.size(), 0.0);
   std::vector<int> error_n(ba_points.size(), 0);
   for (const BaObservation& o : ba_obs) {
-    const Eigen::Vector3d p =
-        ba_keyframes[static_cast<std::size_t>(o.keyframe)].T_cam_world *
-        ba_points[static_cast<std::size_t>(o.point)].p_world;
+    const Eigen::Vector3d p = ba_keyframes[static_cast<std::size_t>(o.keyframe)].T_cam_world *
+                              ba_points[static_cast<std::size_t>(o.point)].p_world;
     double e = 1e9;
     if (p.z() > 1e-3) {
       const Eigen::Vector3d uvr = K.project(p);
@@ -164,37 +248,86 @@ MapperStats Mapper::Impl::adjust(int first_keyframe, int iterations, MapCorrecti
     PointRecord& p = points[static_cast<std::size_t>(point_of_ba[bp])];
     const double mean_error = error_sum[bp] / std::max(1, error_n[bp]);
     if (!ba_points[bp].p_world.allFinite() || mean_error > config.cull_error_px) {
-      p.alive = false;
-      out.culled.push_back(p.id);
-      ++stats.culled;
+      kill_point(p, out, stats);
       continue;
     }
     p.p_world = ba_points[bp].p_world;
     // Seen from several key-frames, the point is as good as its best view's depth.
-    p.sigma_m = static_cast<float>(p.sigma0_m / std::sqrt(static_cast<double>(std::max<std::size_t>(1, p.observations.size()))));
-    out.points.push_back(MapCorrection::Point{p.id, p.p_world, p.sigma_m});
+    p.sigma_m = static_cast<float>(
+        p.sigma0_m /
+        std::sqrt(static_cast<double>(std::max<std::size_t>(1, p.observations.size()))));
+    out.points.push_back(MapCorrection::Point{p.id, p.generation, p.p_world, p.sigma_m});
     ++stats.adjusted_points;
   }
   ++version;
   return stats;
 }
 
+/// Drops key-frames of the window whose points are nearly all seen by enough others (a head
+/// that stays in one room keeps making key-frames where key-frames already are).
+void Mapper::Impl::cull_redundant(const std::vector<int>& window, MapCorrection& out,
+                                  MapperStats& stats) {
+  const int keep_from = static_cast<int>(window.size()) - config.keep_newest_keyframes;
+  for (int w = 0; w < keep_from; ++w) {
+    const int k = window[static_cast<std::size_t>(w)];
+    MapperKeyframe& kf = keyframes[static_cast<std::size_t>(k)];
+    if (!kf.alive || kf.segment_start) continue;
+    int seen = 0, redundant = 0;
+    for (const PointSlot& slot : kf.points) {
+      if (!sees(slot)) continue;
+      ++seen;
+      int others = 0;
+      for (const Observation& o : points[static_cast<std::size_t>(slot.index)].observations) {
+        if (o.keyframe != k && keyframes[static_cast<std::size_t>(o.keyframe)].alive) ++others;
+      }
+      redundant += others >= config.redundant_observers ? 1 : 0;
+    }
+    if (seen == 0 || static_cast<double>(redundant) < config.redundant_share * seen) continue;
+    kf.alive = false;
+    --alive_keyframes;
+    ++culled_keyframes;
+    ++stats.culled_keyframes;
+    if (!out.culled_keyframes.full()) out.culled_keyframes.push_back(kf.id);
+    for (const PointSlot& slot : kf.points) {
+      if (!sees(slot)) continue;
+      PointRecord& p = points[static_cast<std::size_t>(slot.index)];
+      std::erase_if(p.observations, [k](const Observation& o) { return o.keyframe == k; });
+      if (p.observations.empty()) kill_point(p, out, stats);
+    }
+    kf.points.clear();
+    kf.points.shrink_to_fit();
+  }
+}
+
 MapperStats Mapper::local_adjust(MapCorrection& out) {
-  const int n = static_cast<int>(impl_->keyframes.size());
-  return impl_->adjust(n - impl_->config.local_keyframes, impl_->config.local_iterations, out);
+  Impl& m = *impl_;
+  const std::vector<int> window = m.newest_alive(m.config.local_keyframes);
+  MapperStats stats = m.adjust(window, m.config.local_iterations, m.config.local_fixed_keyframes, out);
+  if (m.alive_keyframes >= m.config.min_keyframes_for_ba) m.cull_redundant(window, out, stats);
+  stats.keyframes = m.alive_keyframes;
+  return stats;
 }
 
 MapperStats Mapper::global_adjust(MapCorrection& out) {
-  return impl_->adjust(0, impl_->config.global_iterations, out);
+  Impl& m = *impl_;
+  const std::vector<int> window = m.newest_alive(m.config.global_keyframes);
+  MapperStats stats =
+      m.adjust(window, m.config.global_iterations, 2 * m.config.local_fixed_keyframes, out);
+  stats.keyframes = m.alive_keyframes;
+  return stats;
 }
 
 MapSnapshot Mapper::snapshot() const {
   const Impl& m = *impl_;
   MapSnapshot s;
   s.version = m.version;
-  for (const MapperKeyframe& k : m.keyframes) {
-    s.keyframe_centres.push_back(k.T_world_cam.translation());
-    s.keyframe_t_ns.push_back(k.t_ns);
+  std::vector<std::uint32_t> alive_index(m.keyframes.size(), 0);
+  for (std::size_t k = 0; k < m.keyframes.size(); ++k) {
+    const MapperKeyframe& kf = m.keyframes[k];
+    if (!kf.alive) continue;
+    alive_index[k] = static_cast<std::uint32_t>(s.keyframe_centres.size());
+    s.keyframe_centres.push_back(kf.T_world_cam.translation());
+    s.keyframe_t_ns.push_back(kf.t_ns);
   }
   s.viewer_offset.push_back(0);
   for (const PointRecord& p : m.points) {
@@ -205,7 +338,7 @@ MapSnapshot Mapper::snapshot() const {
     s.sigma_m.push_back(p.sigma_m);
     s.point_ids.push_back(p.id);
     for (const Observation& o : p.observations) {
-      s.viewer_index.push_back(static_cast<std::uint32_t>(o.keyframe));
+      s.viewer_index.push_back(alive_index[static_cast<std::size_t>(o.keyframe)]);
     }
     s.viewer_offset.push_back(static_cast<std::uint32_t>(s.viewer_index.size()));
   }

@@ -34,8 +34,10 @@ void KeyframeMessage::copy_from(const KeyframeMessage& other) {
   for (const KeyframeObservation& o : other.observations) observations.push_back(o);
   new_points.clear();
   for (const NewMapPoint& p : other.new_points) new_points.push_back(p);
+  segment = other.segment;
+  segment_start = other.segment_start;
   culled.clear();
-  for (std::int32_t point : other.culled) culled.push_back(point);
+  for (const PointRef& point : other.culled) culled.push_back(point);
 }
 
 SE3d predict_camera_pose(const SE3d& T_cw_last, const SE3d& velocity, const RotationPrior& gyro) {
@@ -65,11 +67,21 @@ struct Track {
 };
 
 struct KeyframeRecord {
-  std::int32_t id = -1;
+  std::int32_t id = -1;  //!< -1: a free record
   TimeNs t_ns = 0;
   SE3d T_world_cam = SE3d::Identity();
-  FixedVector<std::int32_t> points;   //!< map points it observed
-  std::vector<float> thumbnail;       //!< zero-mean block averages, sized once
+  std::int32_t segment = 0;
+  FixedVector<PointRef> points;   //!< map points it observed
+  std::vector<float> thumbnail;   //!< zero-mean block averages, sized once
+};
+
+/// A corner of the frame being relocalised, with its descriptor and (lazily) its right match.
+struct RelocCorner {
+  float u_px = 0.0f, v_px = 0.0f;
+  Descriptor256 descriptor;
+  bool has_descriptor = false;
+  bool right_tried = false;
+  float u_right_px = NAN;
 };
 
 double rotation_angle_deg(const Eigen::Matrix3d& R) {
@@ -84,9 +96,10 @@ struct Tracker::Impl {
   Clock clock = nullptr;
   int width = 0, height = 0;
   StereoIntrinsics K;
+  double far_depth_m = 0.0;  // config.far_depth_m, or the rig's 4 px disparity
   SE3d T_body_rect = SE3d::Identity();
   std::array<RemapTable, 2> remap;
-  std::array<GrayImage, 2> rect;  // current rectified left, right
+  std::array<GrayImage, 2> rect;   // current rectified left, right
   std::array<Pyramid, 2> pyramid;  // left pyramids: [cur_pyr] this frame, the other the last
   int cur_pyr = 0;
   CornerDetector detector;
@@ -100,16 +113,20 @@ struct Tracker::Impl {
   FixedVector<std::int32_t> obs_point;
   FixedVector<std::uint8_t> inlier;
   FixedVector<std::int32_t> candidates;
-  FixedVector<std::int32_t> pending_culls;  // culled since the last key-frame's message
-  FixedVector<std::int32_t> attempted;      // stage 1's tracks this frame
+  FixedVector<PointRef> pending_culls;   // culled since the last key-frame's message
+  FixedVector<std::int32_t> attempted;   // stage 1's tracks this frame
+  FixedVector<RelocCorner> reloc_corners;
+  FixedVector<float> brightness_prev, brightness_cur;  // stage 1's exposure samples
 
-  std::vector<KeyframeRecord> keyframes;  // ring of max_keyframes records
+  std::vector<KeyframeRecord> keyframes;  // a pool of max_keyframes records (id -1: free)
   std::int32_t next_keyframe = 0;
   std::int32_t reference_keyframe = -1;
   std::vector<float> thumbnail;  // this frame's
   int thumb_w = 0, thumb_h = 0;
   KeyframeMessage message;
   bool message_pending = false;
+  bool keyframes_allowed = true;
+  int stale_updates = 0;
 
   TrackingState state = TrackingState::kInitialising;
   SE3d T_cw = SE3d::Identity();       // camera <- world, this frame
@@ -118,12 +135,36 @@ struct Tracker::Impl {
   std::int64_t frame = -1;
   std::int64_t last_keyframe_frame = -1;
   std::uint32_t stage2_offset = 0;
+  std::int32_t segment = 0;
+  bool segment_started = false;  // the current segment has made its first key-frame
+  int lost_frames = 0;           // in a row
+  bool stage2_ran = false;       // this frame
 
   std::int64_t now() const { return clock != nullptr ? clock() : 0; }
   KeyframeRecord* keyframe_by_id(std::int32_t id) {
     if (id < 0) return nullptr;
-    KeyframeRecord& k = keyframes[static_cast<std::size_t>(id) % keyframes.size()];
-    return k.id == id ? &k : nullptr;
+    for (KeyframeRecord& k : keyframes) {
+      if (k.id == id) return &k;
+    }
+    return nullptr;
+  }
+  /// A free record, else the oldest one (the mapper keeps every key-frame; the tracker's records
+  /// are for relocalisation and key-frame spacing).
+  KeyframeRecord& record_for_new_keyframe() {
+    KeyframeRecord* oldest = &keyframes.front();
+    for (KeyframeRecord& k : keyframes) {
+      if (k.id < 0) return k;
+      if (k.id < oldest->id) oldest = &k;
+    }
+    return *oldest;
+  }
+  bool alive(const PointRef& ref) const {
+    if (ref.id < 0 || static_cast<std::size_t>(ref.id) >= points.size()) return false;
+    const MapPoint& p = points[static_cast<std::size_t>(ref.id)];
+    return p.alive && p.generation == ref.generation;
+  }
+  PointRef ref_of(std::int32_t id) const {
+    return PointRef{id, points[static_cast<std::size_t>(id)].generation};
   }
 
   void make_thumbnail(const GrayView& img, std::vector<float>& out) const;
@@ -133,16 +174,21 @@ struct Tracker::Impl {
                double& depth) const;
   std::optional<float> right_u(float u, float v, double depth_hint) const;
   std::int32_t new_point(const Eigen::Vector3d& p_world, float sigma, float u, float v);
-  int add_stereo_points();
+  void free_point(std::int32_t id);
+  int add_stereo_points(bool& map_full);
   void stage1(const SE3d& prior, TrackResult& result);
   void stage2(int radius, TrackResult& result, const KeyframeRecord* only);
   PoseResult solve(const SE3d& prior, bool ransac);
   void keep_inlier_tracks();
+  void rank_keyframes(std::array<const KeyframeRecord*, 8>& best, int& n);
+  bool relocalise_by_appearance(const KeyframeRecord& k, TrackResult& result);
+  bool relocalise_by_patches(const KeyframeRecord& k, TrackResult& result);
   bool relocalise(TrackResult& result);
   bool need_keyframe() const;
   void make_keyframe(TimeNs t_ns, TrackResult& result);
   void cull_points();
   void initialise(TimeNs t_ns, TrackResult& result);
+  void clear_map();
 };
 
 Tracker::Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock clock)
@@ -151,15 +197,18 @@ Tracker::Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock c
   m.config = config;
   m.clock = clock;
   if (config.max_tracks < 8 || config.max_map_points < config.max_tracks ||
-      config.max_keyframes < 2 || config.pyramid_levels < 1) {
+      config.max_keyframes < 2 || config.pyramid_levels < 2) {
     throw std::invalid_argument(
         "tracker: capacities too small (max_tracks >= 8, max_map_points >= max_tracks, "
-        "max_keyframes >= 2, pyramid_levels >= 1)");
+        "max_keyframes >= 2, pyramid_levels >= 2)");
   }
   const Rectifier rectifier(rig);
   m.width = rectifier.size().width;
   m.height = rectifier.size().height;
   m.K = StereoIntrinsics{rectifier.f_px(), rectifier.cx(), rectifier.cy(), rectifier.baseline_m()};
+  m.far_depth_m = std::max(config.max_depth_m, config.far_depth_m > 0.0
+                                                   ? config.far_depth_m
+                                                   : m.K.f_px * m.K.baseline_m / 4.0);
   SE3d T_cam0_rect = SE3d::Identity();
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) T_cam0_rect.linear()(i, j) = rectifier.R(0)(j, i);
@@ -181,27 +230,30 @@ Tracker::Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock c
   const auto max_points = static_cast<std::size_t>(config.max_map_points);
   const auto keyframe_points = static_cast<std::size_t>(config.keyframe_points);
   m.corners = FixedVector<Corner>(keyframe_points);
+  m.reloc_corners = FixedVector<RelocCorner>(keyframe_points);
   m.occupancy.assign(static_cast<std::size_t>(m.detector.bucket_count()), 0);
   m.points = FixedVector<MapPoint>(max_points);
   m.free_points = FixedVector<std::int32_t>(max_points);
   m.tracks = FixedVector<Track>(max_tracks);
   m.next_tracks = FixedVector<Track>(max_tracks);
   // Relocalisation and stage 2 may gather more observations than tracks.
-  const std::size_t max_obs = max_tracks + static_cast<std::size_t>(std::max(
-                                               config.stage2_max_attempts,
-                                               config.relocalise_max_points));
+  const std::size_t max_obs =
+      max_tracks + keyframe_points +
+      static_cast<std::size_t>(std::max(config.stage2_max_attempts, config.relocalise_max_points));
   m.obs = FixedVector<PoseObservation>(max_obs);
   m.obs_point = FixedVector<std::int32_t>(max_obs);
   m.inlier = FixedVector<std::uint8_t>(max_obs);
   m.candidates = FixedVector<std::int32_t>(max_points);
-  m.pending_culls = FixedVector<std::int32_t>(max_points);
+  m.pending_culls = FixedVector<PointRef>(max_points);
   m.attempted = FixedVector<std::int32_t>(max_tracks);
+  m.brightness_prev = FixedVector<float>(max_tracks);
+  m.brightness_cur = FixedVector<float>(max_tracks);
   m.thumb_w = m.width / kThumbBlock;
   m.thumb_h = m.height / kThumbBlock;
   m.thumbnail.resize(static_cast<std::size_t>(m.thumb_w * m.thumb_h));
   m.keyframes.resize(static_cast<std::size_t>(config.max_keyframes));
   for (KeyframeRecord& k : m.keyframes) {
-    k.points = FixedVector<std::int32_t>(max_tracks + keyframe_points);
+    k.points = FixedVector<PointRef>(max_tracks + keyframe_points);
     k.thumbnail.resize(m.thumbnail.size());
   }
   m.message = KeyframeMessage(max_tracks + keyframe_points, max_points);
@@ -217,16 +269,29 @@ const TrackerConfig& Tracker::config() const { return impl_->config; }
 const KeyframeMessage* Tracker::pending_keyframe() const {
   return impl_->message_pending ? &impl_->message : nullptr;
 }
+void Tracker::set_keyframes_allowed(bool allowed) { impl_->keyframes_allowed = allowed; }
+
+void Tracker::Impl::clear_map() {
+  // Generations survive a reset, so a message about an old point can never match a new one.
+  for (MapPoint& p : points) {
+    p.alive = false;
+    ++p.generation;
+  }
+  free_points.clear();
+  for (std::size_t i = points.size(); i-- > 0;) free_points.push_back(static_cast<std::int32_t>(i));
+  pending_culls.clear();
+  tracks.clear();
+  for (KeyframeRecord& k : keyframes) k.id = -1;
+  reference_keyframe = -1;
+}
 
 void Tracker::reset() {
   Impl& m = *impl_;
-  m.points.clear();
-  m.free_points.clear();
-  m.pending_culls.clear();
-  m.tracks.clear();
-  for (KeyframeRecord& k : m.keyframes) k.id = -1;
+  m.clear_map();
   m.next_keyframe = 0;
-  m.reference_keyframe = -1;
+  m.segment = 0;
+  m.segment_started = false;
+  m.lost_frames = 0;
   m.state = TrackingState::kInitialising;
   m.T_cw = m.T_cw_last = m.velocity = SE3d::Identity();
   m.message_pending = false;
@@ -247,7 +312,16 @@ void Tracker::Impl::make_thumbnail(const GrayView& img, std::vector<float>& out)
     }
   }
   mean /= static_cast<double>(out.size());
-  for (float& v : out) v -= static_cast<float>(mean);
+  // Zero mean and unit spread: an exposure change does not make a place look different.
+  double var = 0.0;
+  for (float& v : out) {
+    v -= static_cast<float>(mean);
+    var += static_cast<double>(v) * v;
+  }
+  const double sd = std::sqrt(var / static_cast<double>(out.size()));
+  if (sd > 1e-3) {
+    for (float& v : out) v = static_cast<float>(v / sd);
+  }
 }
 
 const char* Tracker::Impl::check(const Image& left, const Image& right) const {
@@ -273,7 +347,7 @@ bool Tracker::Impl::project(const SE3d& T, const Eigen::Vector3d& p_world, doubl
                             Eigen::Vector3d& uvr, double& depth) const {
   const Eigen::Vector3d p = T * p_world;
   depth = p.z();
-  if (!(depth > config.min_depth_m * 0.5) || depth > config.max_depth_m * 2.0) return false;
+  if (!(depth > config.min_depth_m * 0.5) || depth > far_depth_m * 1.5) return false;
   uvr = K.project(p);
   return uvr.x() >= margin && uvr.y() >= margin && uvr.x() < width - 1 - margin &&
          uvr.y() < height - 1 - margin;
@@ -310,20 +384,31 @@ std::int32_t Tracker::Impl::new_point(const Eigen::Vector3d& p_world, float sigm
     return -1;  // the map is full
   }
   MapPoint& p = points[static_cast<std::size_t>(id)];
+  const std::uint32_t generation = p.generation + 1;  // a reused id names a new point
   p = MapPoint{};
+  p.generation = generation;
   p.p_world = p_world;
   p.sigma_m = sigma;
   p.alive = true;
+  p.segment = segment;
   p.keyframe = next_keyframe;
   p.tracked_frame = static_cast<std::int32_t>(frame);
   extract_patch(rect[0].view(), u, v, p.patch);
+  p.has_descriptor = compute_descriptor(pyramid[static_cast<std::size_t>(cur_pyr)].level(1), u, v,
+                                        p.descriptor);
   return id;
+}
+
+void Tracker::Impl::free_point(std::int32_t id) {
+  MapPoint& p = points[static_cast<std::size_t>(id)];
+  p.alive = false;
+  free_points.push_back(id);  // capacity = max points: never full while a point is alive
 }
 
 /// New map points from corners in buckets that hold fewer than per_bucket tracks, matched along
 /// the rows and triangulated. Each is observed by the key-frame being made (message) and tracked
 /// from now on while there is room for tracks; the others wait in the map for stage 2.
-int Tracker::Impl::add_stereo_points() {
+int Tracker::Impl::add_stereo_points(bool& map_full) {
   std::fill(occupancy.begin(), occupancy.end(), std::uint16_t{0});
   for (const Track& t : tracks) {
     ++occupancy[static_cast<std::size_t>(detector.bucket_of(t.u_px, t.v_px))];
@@ -331,22 +416,46 @@ int Tracker::Impl::add_stereo_points() {
   detector.detect(rect[0].view(), occupancy, corners);
   const SE3d T_wc = T_cw.inverse();
   int added = 0;
-  for (const Corner& c : corners) {
-    const std::optional<float> ur = right_u(c.u_px, c.v_px, -1.0);
-    if (!ur) continue;
-    const double disparity = c.u_px - *ur;
-    const Eigen::Vector3d p_cam = K.triangulate(c.u_px, c.v_px, disparity);
-    if (p_cam.z() < config.min_depth_m || p_cam.z() > config.max_depth_m) continue;
+  const auto add = [&](const Corner& c, float ur, const Eigen::Vector3d& p_cam, bool is_far) {
     const float sigma = static_cast<float>(p_cam.z() * p_cam.z() / (K.f_px * K.baseline_m) *
                                            config.depth_sigma_px);
-    if (message.observations.full()) break;
+    if (message.observations.full()) return false;
     const std::int32_t id = new_point(T_wc * p_cam, sigma, c.u_px, c.v_px);
-    if (id < 0) break;  // the map is full
-    tracks.push_back(Track{id, c.u_px, c.v_px, *ur});  // false when the tracks are full
-    message.observations.push_back(KeyframeObservation{id, c.u_px, c.v_px, *ur});
-    message.new_points.push_back(
-        NewMapPoint{id, points[static_cast<std::size_t>(id)].p_world, sigma});
+    if (id < 0) {
+      map_full = true;  // counted: the key-frame adds fewer points than it could
+      return false;
+    }
+    MapPoint& p = points[static_cast<std::size_t>(id)];
+    p.far = is_far;
+    if (is_far) ur = NAN;  // its bearing only
+    tracks.push_back(Track{id, c.u_px, c.v_px, ur});  // false when the tracks are full
+    message.observations.push_back(KeyframeObservation{id, p.generation, c.u_px, c.v_px, ur});
+    message.new_points.push_back(NewMapPoint{id, p.generation, p.p_world, sigma});
     ++added;
+    return true;
+  };
+  // Near points first; the corners matched beyond max_depth_m are kept aside (their disparity
+  // in u_px's place) in case too few near ones are found.
+  std::size_t far = 0;
+  for (std::size_t i = 0; i < corners.size(); ++i) {
+    const Corner& c = corners[i];
+    const std::optional<float> ur = right_u(c.u_px, c.v_px, -1.0);
+    if (!ur) continue;
+    const Eigen::Vector3d p_cam = K.triangulate(c.u_px, c.v_px, c.u_px - *ur);
+    if (p_cam.z() < config.min_depth_m || p_cam.z() > far_depth_m) continue;
+    if (p_cam.z() > config.max_depth_m) {
+      corners[far++] = Corner{c.u_px, c.v_px, *ur};  // shi_tomasi holds u_right here
+      continue;
+    }
+    if (!add(c, *ur, p_cam, false)) return added;
+  }
+  if (static_cast<double>(tracks.size()) >= config.min_near_share * config.max_tracks) {
+    return added;
+  }
+  for (std::size_t i = 0; i < far; ++i) {
+    const Corner& c = corners[i];
+    const float ur = c.shi_tomasi;
+    if (!add(c, ur, K.triangulate(c.u_px, c.v_px, c.u_px - ur), true)) break;
   }
   return added;
 }
@@ -365,7 +474,7 @@ void Tracker::Impl::keep_inlier_tracks() {
   for (std::size_t i = 0; i < obs.size(); ++i) {
     if (inlier[i] == 0) continue;
     const PoseObservation& o = obs[i];
-    next_tracks.push_back(Track{obs_point[i], o.u_px, o.v_px, o.u_right_px});
+    if (!next_tracks.push_back(Track{obs_point[i], o.u_px, o.v_px, o.u_right_px})) break;
     MapPoint& p = points[static_cast<std::size_t>(obs_point[i])];
     p.tracked_frame = static_cast<std::int32_t>(frame);
   }
@@ -375,6 +484,30 @@ void Tracker::Impl::keep_inlier_tracks() {
 void Tracker::Impl::stage1(const SE3d& prior, TrackResult& result) {
   const Pyramid& prev = pyramid[static_cast<std::size_t>(1 - cur_pyr)];
   const Pyramid& cur = pyramid[static_cast<std::size_t>(cur_pyr)];
+  // The frames' brightness relation (an exposure step) from the tracks' neighbourhoods at the
+  // predicted places, on level 2 (the means of 4x4 blocks: little depends on the prediction's
+  // pixel error there).
+  Brightness brightness;
+  {
+    const int level = std::min(2, prev.levels() - 1);
+    const GrayView P = prev.level(level), C = cur.level(level);
+    const float scale = 1.0f / static_cast<float>(1 << level);
+    brightness_prev.clear();
+    brightness_cur.clear();
+    for (const Track& t : tracks) {
+      MapPoint& p = points[static_cast<std::size_t>(t.point)];
+      Eigen::Vector3d uvr;
+      double depth = 0.0;
+      if (!p.alive || !project(prior, p.p_world, 0.0, uvr, depth)) continue;
+      const float px = (t.u_px + 0.5f) * scale - 0.5f, py = (t.v_px + 0.5f) * scale - 0.5f;
+      const float cx = (static_cast<float>(uvr.x()) + 0.5f) * scale - 0.5f;
+      const float cy = (static_cast<float>(uvr.y()) + 0.5f) * scale - 0.5f;
+      if (!P.inside(px, py, 1.0f) || !C.inside(cx, cy, 1.0f)) continue;
+      brightness_prev.push_back(P.sample(px, py));
+      brightness_cur.push_back(C.sample(cx, cy));
+    }
+    brightness = estimate_brightness(brightness_prev.span(), brightness_cur.span());
+  }
   obs.clear();
   obs_point.clear();
   attempted.clear();
@@ -390,8 +523,8 @@ void Tracker::Impl::stage1(const SE3d& prior, TrackResult& result) {
       u = static_cast<float>(uvr.x());
       v = static_cast<float>(uvr.y());
     }
-    if (!klt_track(prev, cur, t.u_px, t.v_px, u, v, config.klt)) continue;
-    const std::optional<float> ur = right_u(u, v, depth);
+    if (!klt_track(prev, cur, t.u_px, t.v_px, u, v, config.klt, brightness)) continue;
+    const std::optional<float> ur = p.far ? std::nullopt : right_u(u, v, depth);
     PoseObservation o;
     o.p_world = p.p_world;
     o.sigma_m = p.sigma_m;
@@ -406,8 +539,10 @@ void Tracker::Impl::stage1(const SE3d& prior, TrackResult& result) {
 }
 
 /// Searches map points in view that are not tracked this frame by their patches. With `only`,
-/// just that key-frame's points (relocalisation).
+/// just that key-frame's points (relocalisation). Points of other map segments are not searched
+/// (their world drifted from this one's).
 void Tracker::Impl::stage2(int radius, TrackResult& result, const KeyframeRecord* only) {
+  stage2_ran = true;
   candidates.clear();
   std::fill(occupancy.begin(), occupancy.end(), std::uint16_t{0});
   for (std::size_t i = 0; i < obs.size(); ++i) {
@@ -416,7 +551,9 @@ void Tracker::Impl::stage2(int radius, TrackResult& result, const KeyframeRecord
   const int limit = only != nullptr ? config.relocalise_max_points : config.stage2_max_attempts;
   const auto consider = [&](std::int32_t id) {
     MapPoint& p = points[static_cast<std::size_t>(id)];
-    if (!p.alive || p.tracked_frame == static_cast<std::int32_t>(frame)) return;
+    if (!p.alive || p.segment != segment || p.tracked_frame == static_cast<std::int32_t>(frame)) {
+      return;
+    }
     Eigen::Vector3d uvr;
     double depth = 0.0;
     if (!project(T_cw, p.p_world, 8.0, uvr, depth)) return;
@@ -428,7 +565,7 @@ void Tracker::Impl::stage2(int radius, TrackResult& result, const KeyframeRecord
                                   static_cast<float>(uvr.y()), radius, &cost);
     candidates.push_back(id);
     if (!hit || cost > config.max_patch_cost) return;
-    const std::optional<float> ur = right_u(hit->first, hit->second, depth);
+    const std::optional<float> ur = p.far ? std::nullopt : right_u(hit->first, hit->second, depth);
     PoseObservation o;
     o.p_world = p.p_world;
     o.sigma_m = p.sigma_m;
@@ -442,7 +579,9 @@ void Tracker::Impl::stage2(int radius, TrackResult& result, const KeyframeRecord
     ++result.found;
   };
   if (only != nullptr) {
-    for (std::int32_t id : only->points) consider(id);
+    for (const PointRef& ref : only->points) {
+      if (alive(ref)) consider(ref.id);
+    }
     return;
   }
   // Start at a rotating offset so every part of the map gets its turn.
@@ -455,32 +594,123 @@ void Tracker::Impl::stage2(int radius, TrackResult& result, const KeyframeRecord
   stage2_offset += 97;
 }
 
-bool Tracker::Impl::relocalise(TrackResult& result) {
+/// The key-frames of this segment whose thumbnails are most like this frame's, best first.
+void Tracker::Impl::rank_keyframes(std::array<const KeyframeRecord*, 8>& best, int& n) {
   make_thumbnail(rect[0].view(), thumbnail);
-  const KeyframeRecord* best = nullptr;
-  double best_ssd = std::numeric_limits<double>::infinity();
+  const int want = std::clamp(config.relocalise_candidates, 1, static_cast<int>(best.size()));
+  std::array<double, 8> ssd{};
+  n = 0;
   for (const KeyframeRecord& k : keyframes) {
-    if (k.id < 0) continue;
-    double ssd = 0.0;
+    if (k.id < 0 || k.segment != segment) continue;
+    double d = 0.0;
     for (std::size_t i = 0; i < thumbnail.size(); ++i) {
-      const double d = thumbnail[i] - k.thumbnail[i];
-      ssd += d * d;
+      const double e = thumbnail[i] - k.thumbnail[i];
+      d += e * e;
     }
-    if (ssd < best_ssd) {
-      best_ssd = ssd;
-      best = &k;
+    // Insert into the sorted short list.
+    int at = n;
+    while (at > 0 && ssd[static_cast<std::size_t>(at - 1)] > d) --at;
+    if (at >= want) continue;
+    for (int j = std::min(n, want - 1); j > at; --j) {
+      best[static_cast<std::size_t>(j)] = best[static_cast<std::size_t>(j - 1)];
+      ssd[static_cast<std::size_t>(j)] = ssd[static_cast<std::size_t>(j - 1)];
+    }
+    best[static_cast<std::size_t>(at)] = &k;
+    ssd[static_cast<std::size_t>(at)] = d;
+    n = std::min(n + 1, want);
+  }
+}
+
+/// The frame's corners matched by descriptor to the key-frame's points, then RANSAC: works
+/// away from the key-frame's pose (no prediction needed).
+bool Tracker::Impl::relocalise_by_appearance(const KeyframeRecord& k, TrackResult& result) {
+  if (reloc_corners.empty()) {
+    // Once per lost frame: the frame's corners and their descriptors.
+    std::fill(occupancy.begin(), occupancy.end(), std::uint16_t{0});
+    detector.detect(rect[0].view(), occupancy, corners);
+    const GrayView half = pyramid[static_cast<std::size_t>(cur_pyr)].level(1);
+    for (const Corner& c : corners) {
+      RelocCorner rc;
+      rc.u_px = c.u_px;
+      rc.v_px = c.v_px;
+      rc.has_descriptor = compute_descriptor(half, c.u_px, c.v_px, rc.descriptor);
+      if (rc.has_descriptor && !reloc_corners.push_back(rc)) break;
     }
   }
-  if (best == nullptr) return false;
-  T_cw = best->T_world_cam.inverse();
+  if (reloc_corners.size() < static_cast<std::size_t>(config.relocalise_min_inliers)) return false;
   obs.clear();
   obs_point.clear();
-  for (std::int32_t id : best->points) {
-    if (id >= 0 && static_cast<std::size_t>(id) < points.size()) {
-      points[static_cast<std::size_t>(id)].tracked_frame = -1;
+  for (const PointRef& ref : k.points) {
+    if (!alive(ref)) continue;
+    const MapPoint& p = points[static_cast<std::size_t>(ref.id)];
+    if (!p.has_descriptor) continue;
+    int best = 257, second = 257;
+    std::size_t best_i = 0;
+    for (std::size_t i = 0; i < reloc_corners.size(); ++i) {
+      const int d = hamming_distance(p.descriptor, reloc_corners[i].descriptor);
+      if (d < best) {
+        second = best;
+        best = d;
+        best_i = i;
+      } else if (d < second) {
+        second = d;
+      }
     }
+    if (best > config.relocalise_max_hamming ||
+        static_cast<float>(best) >= config.relocalise_ratio * static_cast<float>(second)) {
+      continue;
+    }
+    RelocCorner& c = reloc_corners[best_i];
+    if (!c.right_tried) {
+      c.right_tried = true;
+      const std::optional<float> ur = right_u(c.u_px, c.v_px, -1.0);
+      c.u_right_px = ur ? *ur : NAN;
+    }
+    PoseObservation o;
+    o.p_world = p.p_world;
+    o.sigma_m = p.sigma_m;
+    o.u_px = c.u_px;
+    o.v_px = c.v_px;
+    o.u_right_px = p.far ? NAN : c.u_right_px;
+    if (!obs.push_back(o)) break;
+    obs_point.push_back(ref.id);
   }
-  stage2(config.relocalise_radius_px, result, best);
+  if (static_cast<int>(obs.size()) < config.relocalise_min_inliers) return false;
+  PoseParams params = config.pose;
+  params.ransac_iterations = std::max(params.ransac_iterations, 300);
+  inlier.resize(obs.size());
+  const PoseResult pose = estimate_pose(K, obs.span(), k.T_world_cam.inverse(), inlier.span(),
+                                        static_cast<std::uint64_t>(frame) * 104729u + 3u, params);
+  if (!pose.ok || pose.inliers < config.relocalise_min_inliers) return false;
+  T_cw = pose.T_cam_world;
+  // Descriptor matches are few: the key-frame's points found again by their patches around the
+  // pose found make the tracks.
+  obs.clear();
+  obs_point.clear();
+  for (const PointRef& ref : k.points) {
+    if (alive(ref)) points[static_cast<std::size_t>(ref.id)].tracked_frame = -1;
+  }
+  stage2(config.stage2_radius_px, result, &k);
+  if (static_cast<int>(obs.size()) < config.pose.min_inliers) return false;
+  const PoseResult refined = solve(T_cw, false);
+  if (!refined.ok) return false;
+  T_cw = refined.T_cam_world;
+  keep_inlier_tracks();
+  result.inliers = refined.inliers;
+  result.rms_px = refined.rms_px;
+  return true;
+}
+
+/// The key-frame's points searched by their patches with a wide radius around its pose: works
+/// near it (a frame that went dark or blurred without the head moving much).
+bool Tracker::Impl::relocalise_by_patches(const KeyframeRecord& k, TrackResult& result) {
+  T_cw = k.T_world_cam.inverse();
+  obs.clear();
+  obs_point.clear();
+  for (const PointRef& ref : k.points) {
+    if (alive(ref)) points[static_cast<std::size_t>(ref.id)].tracked_frame = -1;
+  }
+  stage2(config.relocalise_radius_px, result, &k);
   if (static_cast<int>(obs.size()) < config.pose.min_inliers) return false;
   const PoseResult pose = solve(T_cw, true);
   if (!pose.ok) return false;
@@ -488,8 +718,22 @@ bool Tracker::Impl::relocalise(TrackResult& result) {
   keep_inlier_tracks();
   result.inliers = pose.inliers;
   result.rms_px = pose.rms_px;
-  reference_keyframe = best->id;
   return true;
+}
+
+bool Tracker::Impl::relocalise(TrackResult& result) {
+  std::array<const KeyframeRecord*, 8> best{};
+  int n = 0;
+  rank_keyframes(best, n);
+  reloc_corners.clear();
+  for (int i = 0; i < n; ++i) {
+    const KeyframeRecord& k = *best[static_cast<std::size_t>(i)];
+    if (relocalise_by_patches(k, result) || relocalise_by_appearance(k, result)) {
+      reference_keyframe = k.id;
+      return true;
+    }
+  }
+  return false;
 }
 
 bool Tracker::Impl::need_keyframe() const {
@@ -500,24 +744,26 @@ bool Tracker::Impl::need_keyframe() const {
       frame - last_keyframe_frame >= config.keyframe_min_frames) {
     return true;
   }
-  // Median depth of the tracked points sets the distance scale.
+  // A quantile of the tracked points' depths sets the distance scale.
   std::array<float, 64> depths{};
   std::size_t n = 0;
-  for (std::size_t i = 0; i < tracks.size() && n < depths.size(); i += std::max<std::size_t>(1, tracks.size() / 64)) {
-    depths[n++] = static_cast<float>((T_cw * points[static_cast<std::size_t>(tracks[i].point)].p_world).z());
+  for (std::size_t i = 0; i < tracks.size() && n < depths.size();
+       i += std::max<std::size_t>(1, tracks.size() / 64)) {
+    depths[n++] = static_cast<float>(
+        (T_cw * points[static_cast<std::size_t>(tracks[i].point)].p_world).z());
   }
   if (n == 0) return true;
-  const std::size_t q = std::min(n - 1, static_cast<std::size_t>(
-                                            config.keyframe_depth_quantile * static_cast<double>(n)));
+  const std::size_t q = std::min(
+      n - 1, static_cast<std::size_t>(config.keyframe_depth_quantile * static_cast<double>(n)));
   std::nth_element(depths.begin(), depths.begin() + static_cast<std::ptrdiff_t>(q),
                    depths.begin() + static_cast<std::ptrdiff_t>(n));
-  const double median_depth = std::max(0.5, static_cast<double>(depths[q]));
+  const double scene_depth = std::max(0.5, static_cast<double>(depths[q]));
   const SE3d T_wc = T_cw.inverse();
   for (const KeyframeRecord& k : keyframes) {
-    if (k.id < 0) continue;
+    if (k.id < 0 || k.segment != segment) continue;
     const double distance = (k.T_world_cam.translation() - T_wc.translation()).norm();
     const double angle = rotation_angle_deg(k.T_world_cam.linear().transpose() * T_wc.linear());
-    if (distance < config.keyframe_distance_ratio * median_depth &&
+    if (distance < config.keyframe_distance_ratio * scene_depth &&
         angle < config.keyframe_angle_deg) {
       return false;  // near this key-frame
     }
@@ -542,36 +788,56 @@ void Tracker::Impl::cull_points() {
         static_cast<double>(p.found) >= config.cull_found_ratio * p.visible) {
       return;
     }
-    if (free_points.full() || pending_culls.full()) return;
-    p.alive = false;
-    free_points.push_back(id);
-    pending_culls.push_back(id);
+    if (pending_culls.full()) return;
+    pending_culls.push_back(ref_of(id));
+    free_point(id);
   };
   for (std::int32_t id : attempted) judge(id);
   for (std::int32_t id : candidates) judge(id);
 }
 
 void Tracker::Impl::make_keyframe(TimeNs t_ns, TrackResult& result) {
+  // Points the map has in view (a place seen before) fill the buckets before new ones are made.
+  if (!stage2_ran && state == TrackingState::kTracking) {
+    const int found_before = result.found;
+    stage2(config.stage2_radius_px, result, nullptr);
+    if (result.found > found_before) {
+      const PoseResult pose = solve(T_cw, false);
+      if (pose.ok) {
+        T_cw = pose.T_cam_world;
+        keep_inlier_tracks();
+        result.inliers = pose.inliers;
+        result.rms_px = pose.rms_px;
+      }
+    }
+  }
   const std::int32_t id = next_keyframe;
   message.id = id;
   message.t_ns = t_ns;
   message.T_world_cam = T_cw.inverse();
+  message.segment = segment;
+  message.segment_start = !segment_started;
   message.observations.clear();
   message.new_points.clear();
   message.culled.clear();
-  for (std::int32_t point : pending_culls) message.culled.push_back(point);
+  for (const PointRef& point : pending_culls) message.culled.push_back(point);
   pending_culls.clear();
   for (const Track& t : tracks) {
-    message.observations.push_back(KeyframeObservation{t.point, t.u_px, t.v_px, t.u_right_px});
+    message.observations.push_back(KeyframeObservation{
+        t.point, points[static_cast<std::size_t>(t.point)].generation, t.u_px, t.v_px,
+        t.u_right_px});
   }
-  result.new_points = add_stereo_points();
-  KeyframeRecord& k = keyframes[static_cast<std::size_t>(id) % keyframes.size()];
+  bool map_full = false;
+  result.new_points = add_stereo_points(map_full);
+  result.map_full = map_full;
+  KeyframeRecord& k = record_for_new_keyframe();
   k.id = id;
   k.t_ns = t_ns;
   k.T_world_cam = message.T_world_cam;
+  k.segment = segment;
   k.points.clear();
   for (const KeyframeObservation& o : message.observations) {
-    k.points.push_back(o.point);
+    k.points.push_back(PointRef{o.point, o.generation});
     MapPoint& p = points[static_cast<std::size_t>(o.point)];
     if (p.observations < 65535) ++p.observations;
   }
@@ -579,26 +845,28 @@ void Tracker::Impl::make_keyframe(TimeNs t_ns, TrackResult& result) {
   reference_keyframe = id;
   ++next_keyframe;
   last_keyframe_frame = frame;
+  segment_started = true;
   message_pending = true;
   result.keyframe = true;
 }
 
+/// The first key-frame of a segment, at the current pose (the identity for the first map).
 void Tracker::Impl::initialise(TimeNs t_ns, TrackResult& result) {
   tracks.clear();
-  points.clear();
-  free_points.clear();
-  T_cw = SE3d::Identity();
+  const std::int32_t first_id = next_keyframe;
   make_keyframe(t_ns, result);
   if (result.new_points < config.min_initial_points) {
     // Not enough structure (blank wall, dark frame): forget this attempt, try the next frame.
-    keyframes[0].id = -1;
-    next_keyframe = 0;
+    if (KeyframeRecord* k = keyframe_by_id(first_id)) k->id = -1;
+    for (const NewMapPoint& p : message.new_points) free_point(p.point);
+    next_keyframe = first_id;
     reference_keyframe = -1;
-    points.clear();
+    segment_started = false;
     tracks.clear();
     message_pending = false;
     result.keyframe = false;
     result.new_points = 0;
+    result.map_full = false;
     return;
   }
   state = TrackingState::kTracking;
@@ -610,12 +878,15 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
   Impl& m = *impl_;
   TrackResult result;
   result.t_ns = t_ns;
+  result.stale_updates = m.stale_updates;
+  m.stale_updates = 0;
   const std::int64_t t0 = m.now();
   m.message_pending = false;
   result.rejected = m.check(left, right);
   if (result.rejected != nullptr) {
     result.frame = m.frame;
     result.state = m.state;
+    result.segment = m.segment;
     result.T_world_cam = m.T_cw.inverse();
     return result;
   }
@@ -627,6 +898,7 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
   m.pyramid[static_cast<std::size_t>(m.cur_pyr)].build(m.rect[0].view());
   const std::int64_t t2 = m.now();
   std::int64_t t3 = t2, t4 = t2;
+  m.stage2_ran = false;
 
   if (m.state == TrackingState::kInitialising) {
     m.initialise(t_ns, result);
@@ -649,12 +921,9 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
       }
       if (!pose.ok && !m.velocity.isApprox(SE3d::Identity())) {
         // The motion model may be what failed (the head stopped or turned back): once more from
-        // the last pose, the gyro's rotation kept.
-        SE3d still = m.T_cw_last;
-        if (gyro.valid) {
-          // Turned as the gyro says, about the last camera centre.
-          still = predict_camera_pose(m.T_cw_last, SE3d::Identity(), gyro);
-        }
+        // the last pose, turned as the gyro says.
+        const SE3d still = gyro.valid ? predict_camera_pose(m.T_cw_last, SE3d::Identity(), gyro)
+                                      : m.T_cw_last;
         m.stage1(still, result);
         if (!m.obs.empty()) pose = m.solve(still, true);
       }
@@ -668,29 +937,59 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
       t4 = m.now();
     }
     if (!ok) {
-      // Lost: relocalise against the key-frames; meanwhile hold the last pose (never NaN).
-      const SE3d held = m.T_cw_last;
+      // Lost: relocalise against the key-frames; meanwhile the motion model carries the pose
+      // on for a few frames, then holds it (never NaN).
+      const SE3d carried = m.lost_frames < m.config.lost_extrapolate_frames ? prior : m.T_cw_last;
       if (m.relocalise(result)) {
         ok = true;
         result.relocalised = true;
       } else {
-        m.T_cw = held;
+        m.T_cw = carried;
         m.tracks.clear();
       }
       t3 = t4 = m.now();
     }
-    m.state = ok ? TrackingState::kTracking : TrackingState::kLost;
     if (ok) {
+      m.state = TrackingState::kTracking;
       m.velocity = orthonormalised(m.T_cw * m.T_cw_last.inverse());
+      m.lost_frames = 0;
       m.cull_points();
-      if (m.need_keyframe()) m.make_keyframe(t_ns, result);
+      if (m.need_keyframe()) {
+        if (m.keyframes_allowed) {
+          m.make_keyframe(t_ns, result);
+        } else {
+          result.keyframe_deferred = true;
+        }
+      }
     } else {
-      m.velocity = SE3d::Identity();
+      m.state = TrackingState::kLost;
+      ++m.lost_frames;
+      if (m.lost_frames > m.config.lost_extrapolate_frames) m.velocity = SE3d::Identity();
+      if (m.config.new_segment_after_lost > 0 && m.lost_frames >= m.config.new_segment_after_lost &&
+          m.keyframes_allowed) {
+        // Relocalisation keeps failing: a new map segment from this frame's stereo points at
+        // the pose carried on so far. The old segment's points stay in the map (its walls), but
+        // tracking and relocalisation use the new one's.
+        ++m.segment;
+        m.segment_started = false;
+        m.tracks.clear();
+        m.reference_keyframe = -1;
+        m.initialise(t_ns, result);
+        if (m.state == TrackingState::kTracking) {
+          result.new_segment = true;
+          m.lost_frames = 0;
+          m.velocity = SE3d::Identity();
+        } else {
+          --m.segment;  // nothing to start from yet (a dark frame): try again next frame
+          m.state = TrackingState::kLost;
+        }
+      }
     }
   }
   m.T_cw_last = m.T_cw;
   const std::int64_t t5 = m.now();
   result.state = m.state;
+  result.segment = m.segment;
   result.T_world_cam = m.T_cw.inverse();
   result.times = TrackerTimes{t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t5 - t0};
   return result;
@@ -699,19 +998,23 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
 void Tracker::apply(const MapCorrection& correction) {
   Impl& m = *impl_;
   for (const MapCorrection::Point& c : correction.points) {
-    if (c.point < 0 || static_cast<std::size_t>(c.point) >= m.points.size()) continue;
+    if (!m.alive(PointRef{c.point, c.generation})) {
+      // Culled (and perhaps reused) since the mapper saw it: the correction is for a point
+      // that no longer exists.
+      if (c.point >= 0) ++m.stale_updates;
+      continue;
+    }
+    if (!c.p_world.allFinite()) continue;
     MapPoint& p = m.points[static_cast<std::size_t>(c.point)];
-    if (!p.alive || !c.p_world.allFinite()) continue;
     p.p_world = c.p_world;
     p.sigma_m = c.sigma_m;
   }
-  for (std::int32_t id : correction.culled) {
-    if (id < 0 || static_cast<std::size_t>(id) >= m.points.size()) continue;
-    MapPoint& p = m.points[static_cast<std::size_t>(id)];
-    if (p.alive && !m.free_points.full()) {
-      p.alive = false;
-      m.free_points.push_back(id);
+  for (const PointRef& ref : correction.culled) {
+    if (!m.alive(ref)) {
+      if (ref.id >= 0) ++m.stale_updates;
+      continue;
     }
+    m.free_point(ref.id);
   }
   for (const MapCorrection::Keyframe& c : correction.keyframes) {
     KeyframeRecord* k = m.keyframe_by_id(c.id);
@@ -723,6 +1026,10 @@ void Tracker::apply(const MapCorrection& correction) {
       m.T_cw_last = orthonormalised(m.T_cw_last * shift.inverse());
     }
     k->T_world_cam = c.T_world_cam;
+  }
+  for (std::int32_t id : correction.culled_keyframes) {
+    if (KeyframeRecord* k = m.keyframe_by_id(id)) k->id = -1;
+    if (id == m.reference_keyframe) m.reference_keyframe = -1;
   }
 }
 

@@ -49,9 +49,18 @@ struct TrackingOptions {
 TrackingOptions tracking_options(const TrackingConfig& board);
 
 struct TrackingCounters {
-  std::uint64_t frames = 0, keyframes = 0, keyframes_dropped = 0, corrections_applied = 0;
+  std::uint64_t frames = 0, keyframes = 0, corrections_applied = 0;
+  /// Key-frames due while the mapper's queue was full: not made, the tracker kept tracking on
+  /// the map it had (the mapper never misses a key-frame that was made).
+  std::uint64_t keyframes_deferred = 0;
   std::uint64_t lost_frames = 0, rejected_frames = 0, relocalisations = 0, local_adjustments = 0,
                 global_adjustments = 0, culled_points = 0;
+  std::uint64_t new_segments = 0;        //!< maps restarted after relocalisation kept failing
+  std::uint64_t map_full_keyframes = 0;  //!< key-frames that could not add every point
+  std::uint64_t culled_keyframes = 0;    //!< redundant key-frames the mapper dropped
+  std::uint64_t map_keyframes = 0, map_points = 0;  //!< the mapper's map after its last update
+  /// Corrections, culls or observations that named a point's older generation (ignored).
+  std::uint64_t stale_updates = 0;
 };
 
 class TrackingSystem {
@@ -86,6 +95,7 @@ class TrackingSystem {
   void mapping_loop();
   void map_keyframe(const dsp::KeyframeMessage& message, dsp::MapCorrection& out);
   void publish_map();
+  void note(const dsp::MapperStats& stats);  //!< mapping side: counters after an adjustment
   void start_mapping();
   dsp::RotationPrior gyro_prior(TimeNs t_ns);
 
@@ -102,7 +112,8 @@ class TrackingSystem {
   std::size_t gyro_head_ = 0, gyro_count_ = 0;
   TimeNs last_frame_t_ns_ = -1;
   TrackingCounters counters_;
-  std::atomic<std::uint64_t> local_adjustments_{0}, global_adjustments_{0}, culled_{0};
+  std::atomic<std::uint64_t> local_adjustments_{0}, global_adjustments_{0}, culled_{0},
+      culled_keyframes_{0}, map_keyframes_{0}, map_points_{0}, stale_messages_{0};
   mutable std::mutex map_mutex_;  // guards map_ and mapping_times_ (mapping side only)
   std::shared_ptr<const dsp::MapSnapshot> map_;
   std::vector<std::int64_t> mapping_times_;

@@ -12,6 +12,7 @@
 /// Threading: a CornerDetector is used by one thread. Nothing here allocates after construction.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -99,5 +100,20 @@ bool extract_patch(const GrayView& image, float u_px, float v_px, Patch8& out);
 std::optional<std::pair<float, float>> search_patch(const GrayView& image, const Patch8& patch,
                                                     float u_px, float v_px, int radius,
                                                     float* cost);
+
+/// A 256-bit binary descriptor (BRIEF, Calonder et al. 2010): 256 comparisons of smoothed
+/// intensities at pairs of points drawn once (seeded, isotropic Gaussian around the feature).
+/// Used to find map points again by appearance (relocalisation), where no pose is known.
+struct Descriptor256 {
+  std::array<std::uint64_t, 4> bits{};
+};
+/// The descriptor of the feature at full-resolution (u, v), sampled on `half`, an image at half
+/// resolution (a pyramid's level 1: its 2x2 means are the smoothing); each test compares 2x2
+/// means there. False when the pattern leaves the image.
+bool compute_descriptor(const GrayView& half, float u_px, float v_px, Descriptor256& out);
+/// Bits that differ.
+int hamming_distance(const Descriptor256& a, const Descriptor256& b);
+/// The pattern's reach from the feature at full resolution [px] (for border checks).
+inline constexpr int kDescriptorRadiusPx = 28;
 
 }  // namespace wallar::dsp

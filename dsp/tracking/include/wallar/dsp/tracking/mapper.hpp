@@ -25,11 +25,23 @@ namespace wallar::dsp {
 
 struct MapperConfig {
   int local_keyframes = 6;       //!< key-frames moved by a local adjustment
+  /// Key-frames outside the window that see its points and hold still in a local adjustment:
+  /// at most this many (the ones sharing the most points), so a place seen from many
+  /// key-frames does not make each adjustment slower.
+  int local_fixed_keyframes = 12;
   int local_iterations = 6;
   int global_iterations = 10;
+  /// A global adjustment moves at most this many key-frames (the newest), holding the ones
+  /// that share points with them still: bounded time however long the headset runs.
+  int global_keyframes = 48;
   double huber_px = 1.5;
   double cull_error_px = 4.0;    //!< mean reprojection error above which a point is culled
   int min_keyframes_for_ba = 2;
+  /// A key-frame is redundant when this share of its points is seen by at least
+  /// redundant_observers other key-frames (ORB-SLAM's rule); it is dropped, its points kept.
+  double redundant_share = 0.9;
+  int redundant_observers = 3;
+  int keep_newest_keyframes = 4;  //!< never dropped (tracking still refers to them)
 };
 
 /// The sparse map, published as one consistent value.
@@ -46,8 +58,9 @@ struct MapSnapshot {
 };
 
 struct MapperStats {
-  int keyframes = 0;
+  int keyframes = 0;          //!< key-frames in the map (dropped ones not counted)
   int points = 0;
+  int culled_keyframes = 0;   //!< dropped as redundant by this adjustment
   int adjusted_keyframes = 0;
   int adjusted_points = 0;
   int iterations = 0;
@@ -62,16 +75,21 @@ class Mapper {
   Mapper(const Mapper&) = delete;
   Mapper& operator=(const Mapper&) = delete;
 
-  /// Stores a key-frame, its observations and its new points.
+  /// Stores a key-frame, its observations and its new points. Culls and observations naming a
+  /// generation of a point other than the one the map holds are ignored (counted).
   void add_keyframe(const KeyframeMessage& message);
   /// Bundle adjustment of the last local_keyframes key-frames and the points they saw (older
   /// key-frames that saw those points hold still); culls points that do not fit. Writes the
   /// moved points and key-frames into `out` (cleared first, filled until full).
   MapperStats local_adjust(MapCorrection& out);
-  /// Bundle adjustment of every key-frame (the first holds still): for idle time.
+  /// Bundle adjustment of the newest global_keyframes key-frames (each segment's first holds
+  /// still, and the older ones that share points with them): for idle time.
   MapperStats global_adjust(MapCorrection& out);
   [[nodiscard]] MapSnapshot snapshot() const;
-  [[nodiscard]] int keyframe_count() const;
+  [[nodiscard]] int keyframe_count() const;  //!< in the map now
+  [[nodiscard]] int points_count() const;    //!< alive points
+  [[nodiscard]] std::uint64_t culled_keyframes() const;  //!< dropped as redundant, in all
+  [[nodiscard]] std::uint64_t stale_messages() const;    //!< parts naming an old generation
 
  private:
   struct Impl;

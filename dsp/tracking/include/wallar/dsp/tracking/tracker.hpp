@@ -12,9 +12,15 @@
 /// scene depth, or angle) or when too few points are tracked; it adds new map points from
 /// bucketed corners matched along the rows, and is handed to the mapper (mapper.hpp) through
 /// pending_keyframe(). The mapper's bundle adjustment comes back through apply().
-/// When the pose cannot be found the state is kLost and each frame tries to relocalise: the
-/// key-frame whose thumbnail is most like the frame gives the starting pose, and its points are
-/// searched with a wide radius.
+/// When the pose cannot be found the state is kLost, the pose is carried on by the motion model
+/// for a few frames, and each frame tries to relocalise: the key-frames whose thumbnails are most
+/// like the frame are tried by appearance (the frame's corners matched to their points' binary
+/// descriptors, then RANSAC) and by their points' patches around their poses. When that keeps
+/// failing a new map segment starts at the predicted pose, so the output stays continuous.
+///
+/// Map points are named by (id, generation): an id freed by a cull is reused with the next
+/// generation, and corrections or culls naming an older generation are ignored, so a message
+/// about a point that no longer exists can never land on its successor.
 ///
 /// Storage: every per-frame buffer, the map points and the key-frame records live in fixed
 /// capacity storage sized by TrackerConfig at construction. track() and apply() allocate nothing.
@@ -55,6 +61,12 @@ struct TrackerConfig {
   int max_keyframes = 128;      //!< key-frame records kept (a ring) for relocalisation
   int pyramid_levels = 3;
   double min_depth_m = 0.25, max_depth_m = 20.0;
+  /// Beyond max_depth_m, points up to this depth are made only when a key-frame finds too few
+  /// nearer ones (a street ahead of a car, a far wall): they keep the pose, mostly its rotation,
+  /// where near structure is missing. 0: the depth of a 4 px disparity.
+  double far_depth_m = 0.0;
+  /// A key-frame that made fewer than this share of max_tracks near points adds far ones.
+  double min_near_share = 0.3;
   double keyframe_distance_ratio = 0.12;  //!< of the scene depth at keyframe_depth_quantile
   /// The quantile of the tracked points' depths that sets the key-frame distance: the near
   /// structure, which leaves the view first (far points would space key-frames too widely).
@@ -67,6 +79,15 @@ struct TrackerConfig {
   int stage2_max_attempts = 200;
   int relocalise_radius_px = 24;
   int relocalise_max_points = 120;
+  int relocalise_candidates = 3;       //!< key-frames (by thumbnail) tried per lost frame
+  int relocalise_max_hamming = 64;     //!< descriptor distance of a match (of 256 bits)
+  float relocalise_ratio = 0.85f;      //!< best / second-best distance must be below
+  int relocalise_min_inliers = 25;     //!< an appearance relocalisation needs this many
+  /// Lost this many frames in a row without relocalising: start a new map segment at the
+  /// predicted pose (0: never).
+  int new_segment_after_lost = 5;
+  /// While lost, the pose is carried on by the motion model for this many frames, then held.
+  int lost_extrapolate_frames = 5;
   float max_patch_cost = 14.0f;   //!< zero-mean SAD per pixel accepted by the patch search
   /// A map point looked for (tracked in stage 1 or searched in stage 2) this many times and
   /// found in fewer than cull_found_ratio of them is dropped (moving objects, repeated texture,
@@ -83,6 +104,8 @@ struct TrackerConfig {
 /// One map point (world frame = the first frame's rectified left camera).
 struct MapPoint {
   Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
+  std::uint32_t generation = 0;    //!< +1 each time the id is reused
+  std::int32_t segment = 0;        //!< the map segment that made it
   float sigma_m = 0.0f;            //!< position uncertainty (1 sigma, mostly along the ray)
   std::uint16_t observations = 0;  //!< key-frames that saw it
   bool alive = false;
@@ -90,16 +113,30 @@ struct MapPoint {
   std::int32_t tracked_frame = -1; //!< last frame it was tracked in
   std::uint32_t visible = 0, found = 0;  //!< frames it was looked for / found
   Patch8 patch;                    //!< its look when made (rectified left image)
+  Descriptor256 descriptor;        //!< its appearance when made (for relocalisation)
+  bool has_descriptor = false;
+  /// Made beyond max_depth_m: its disparity is too small to trust, so it is used for its
+  /// bearing only (no stereo residual in the pose or in bundle adjustment).
+  bool far = false;
+};
+
+/// A map point as the tracker and the mapper name it to each other.
+struct PointRef {
+  std::int32_t id = -1;
+  std::uint32_t generation = 0;
+  friend bool operator==(const PointRef&, const PointRef&) = default;
 };
 
 /// A map point seen in a key-frame.
 struct KeyframeObservation {
   std::int32_t point = -1;
+  std::uint32_t generation = 0;
   float u_px = 0.0f, v_px = 0.0f;
   float u_right_px = NAN;
 };
 struct NewMapPoint {
   std::int32_t point = -1;
+  std::uint32_t generation = 0;
   Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
   float sigma_m = 0.0f;
 };
@@ -109,10 +146,12 @@ struct KeyframeMessage {
   std::int32_t id = -1;
   TimeNs t_ns = 0;
   SE3d T_world_cam = SE3d::Identity();
+  std::int32_t segment = 0;     //!< map segment (a new one starts after a lasting loss)
+  bool segment_start = false;   //!< the first key-frame of its segment (holds its gauge)
   FixedVector<KeyframeObservation> observations;
   FixedVector<NewMapPoint> new_points;
   /// Map points the tracker gave up on since the last key-frame (rarely found where predicted).
-  FixedVector<std::int32_t> culled;
+  FixedVector<PointRef> culled;
 
   KeyframeMessage() = default;
   KeyframeMessage(std::size_t capacity, std::size_t max_culled)
@@ -124,6 +163,7 @@ struct KeyframeMessage {
 struct MapCorrection {
   struct Point {
     std::int32_t point = -1;
+    std::uint32_t generation = 0;
     Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
     float sigma_m = 0.0f;
   };
@@ -132,16 +172,22 @@ struct MapCorrection {
     SE3d T_world_cam = SE3d::Identity();
   };
   FixedVector<Point> points;
-  FixedVector<std::int32_t> culled;
+  FixedVector<PointRef> culled;
   FixedVector<Keyframe> keyframes;
+  /// Key-frames the mapper dropped as redundant (their points are seen by others).
+  FixedVector<std::int32_t> culled_keyframes;
 
   MapCorrection() = default;
   MapCorrection(std::size_t max_points, std::size_t max_keyframes)
-      : points(max_points), culled(max_points), keyframes(max_keyframes) {}
+      : points(max_points),
+        culled(max_points),
+        keyframes(max_keyframes),
+        culled_keyframes(max_keyframes) {}
   void clear() {
     points.clear();
     culled.clear();
     keyframes.clear();
+    culled_keyframes.clear();
   }
 };
 
@@ -163,6 +209,12 @@ struct TrackResult {
   int new_points = 0;
   bool keyframe = false;
   bool relocalised = false;
+  std::int32_t segment = 0;   //!< the map segment the pose belongs to
+  bool new_segment = false;   //!< this frame started a new segment (after a lasting loss)
+  bool map_full = false;      //!< a key-frame could not add every point: the map is full
+  bool keyframe_deferred = false;  //!< a key-frame was due but not allowed (mapper behind)
+  /// Corrections or culls ignored since the last frame because they named an older generation.
+  int stale_updates = 0;
   /// The frame was not used: not 8-bit gray, or not the calibration's size. The state and the
   /// pose are the last frame's.
   const char* rejected = nullptr;
@@ -206,6 +258,9 @@ class Tracker {
   void apply(const MapCorrection& correction);
   /// Forgets the map and starts again with the next frame.
   void reset();
+  /// Whether track() may make key-frames (false while the mapper is behind: the tracker keeps
+  /// tracking on the map it has and says so in TrackResult::keyframe_deferred).
+  void set_keyframes_allowed(bool allowed);
 
   [[nodiscard]] TrackingState state() const;
   [[nodiscard]] const StereoIntrinsics& intrinsics() const;
