@@ -75,11 +75,11 @@ int run_realtime(const RenderArgs& a, const recording::EurocRecording& rec,
                  const firmware::BoardConfig& board, const firmware::TrackRecordingResult& offline,
                  const WallModel& walls, const firmware::HeadsetViewOptions& view_options) {
   const RigCalibration rig = rec.rig();
-  firmware::TrackingSystem system(rig, firmware::tracking_options(board.tracking),
+  firmware::TrackingAndMapping system(rig, firmware::tracking_options(board.tracking),
                                   &render_clock_ns);
   firmware::LiveView live(rig, view_options, walls, rig.cams[0].rate_hz);
   struct Sink final : source::SensorSink {
-    Sink(firmware::TrackingSystem& s, firmware::LiveView& v, const SE3d& world, const SE3d& rect)
+    Sink(firmware::TrackingAndMapping& s, firmware::LiveView& v, const SE3d& world, const SE3d& rect)
         : system(s), view(v), T_world_tracker(world), T_rect_body(rect.inverse()) {
       track_ns.reserve(1 << 15);
     }
@@ -90,7 +90,7 @@ int run_realtime(const RenderArgs& a, const recording::EurocRecording& rec,
       view.post(
           {frame, frame.left.publish_t_ns, T_world_tracker * r.T_world_cam * T_rect_body, r.state});
     }
-    firmware::TrackingSystem& system;
+    firmware::TrackingAndMapping& system;
     firmware::LiveView& view;
     SE3d T_world_tracker, T_rect_body;
     std::vector<std::int64_t> track_ns;

@@ -460,7 +460,7 @@ class TrackingModule {
   /// After the thread stopped: stops mapping (global adjustment) and returns the final map.
   MapPtr finish() { return system_.finish(); }
 
-  TrackingSystem& system() { return system_; }
+  TrackingAndMapping& system() { return system_; }
   [[nodiscard]] TimeNs heartbeat_ns() const {
     return heartbeat_ns_.load(std::memory_order_relaxed);
   }
@@ -632,7 +632,7 @@ class TrackingModule {
   Seqlock<PoseSnapshot>& pose_;
   LiveView* view_;
   Reconstruction* sync_reconstruction_;
-  TrackingSystem system_;
+  TrackingAndMapping system_;
   std::unique_ptr<dsp::AttitudeFilter> filter_;
   SE3d T_rect_body_;
   Eigen::Matrix3d R_body_imu_;

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file track_recording.cpp
-/// @brief Replay -> TrackingSystem -> poses and map in the body's world -> errors and floor.
+/// @brief Replay -> TrackingAndMapping -> poses and map in the body's world -> errors and floor.
 #include "wallar/firmware/track_recording.hpp"
 
 #include <cmath>
@@ -19,10 +19,10 @@ constexpr double kFloorThresholdM = 0.05;
 std::int64_t clock_ns() { return monotonic_now_ns(); }
 
 struct Sink final : source::SensorSink {
-  explicit Sink(TrackingSystem& s) : system(s) {}
+  explicit Sink(TrackingAndMapping& s) : system(s) {}
   void on_imu(const ImuSample& sample) override { system.on_imu(sample); }
   void on_stereo(const StereoFrame& frame) override { frames.push_back(system.on_stereo(frame)); }
-  TrackingSystem& system;
+  TrackingAndMapping& system;
   std::vector<dsp::TrackResult> frames;
 };
 
@@ -57,9 +57,9 @@ TrackRecordingResult track_recording(const recording::EurocRecording& rec,
   }
   TrackingOptions tracking = options.tracking;
   tracking.use_gyro = tracking.use_gyro && !rec.imu.empty();
-  std::unique_ptr<TrackingSystem> system;
+  std::unique_ptr<TrackingAndMapping> system;
   try {
-    system = std::make_unique<TrackingSystem>(rec.rig(), tracking, &clock_ns);
+    system = std::make_unique<TrackingAndMapping>(rec.rig(), tracking, &clock_ns);
   } catch (const std::invalid_argument& e) {
     throw InputError(name + ": calibration: " + e.what());
   }

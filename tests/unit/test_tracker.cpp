@@ -26,7 +26,7 @@
 #include "wallar/dsp/walls/room.hpp"
 #include "wallar/dsp/walls/room_check.hpp"
 #include "wallar/firmware/track_recording.hpp"
-#include "wallar/firmware/tracking.hpp"
+#include "wallar/firmware/tracking_and_mapping.hpp"
 
 namespace wallar {
 namespace {
@@ -290,7 +290,7 @@ SyntheticRun fly_through_room(int frames, double rate_hz) {
   firmware::TrackingOptions options;
   options.mapping_thread = false;  // lock step: repeatable
   options.use_gyro = false;
-  firmware::TrackingSystem system(synthetic_rig(cam), options);
+  firmware::TrackingAndMapping system(synthetic_rig(cam), options);
   SyntheticRun run;
   run.truth = dsp::synthetic_trajectory(room, frames, rate_hz);
   const SE3d T_world0 = run.truth.front().T_world_body;  // the tracker's world: the first camera
@@ -391,7 +391,7 @@ TEST(TrackerEuroc, StillSequenceDriftsLittleAndItsMapHoldsTheFloor) {
 TEST(TrackerEuroc, OnePairMakesAMap) {
   firmware::TrackingOptions options;
   options.mapping_thread = false;
-  firmware::TrackingSystem system(euroc_still().rig(), options);
+  firmware::TrackingAndMapping system(euroc_still().rig(), options);
   const dsp::TrackResult r = system.on_stereo(euroc_pair(0));
   EXPECT_EQ(r.state, dsp::TrackingState::kTracking);
   EXPECT_TRUE(r.keyframe);
@@ -408,7 +408,7 @@ TEST(TrackerEuroc, OnePairMakesAMap) {
 TEST(TrackerBadInput, BlankStartDarkMiddleRepeatsAndGapsWrongSizes) {
   firmware::TrackingOptions options;
   options.mapping_thread = false;
-  firmware::TrackingSystem system(euroc_still().rig(), options);
+  firmware::TrackingAndMapping system(euroc_still().rig(), options);
   const auto pose_ok = [](const dsp::TrackResult& r) {
     return r.T_world_cam.matrix().allFinite() && r.T_world_cam.translation().norm() < 0.01;
   };

@@ -11,7 +11,7 @@
 ///        │                                           frames overwritten and counted) + Wakeup
 ///        ▼
 ///   tracking thread: attitude filter (IMU), tracker, degraded modes ──pose──▶ Seqlock
-///        │ key-frames ─▶ mapping thread (TrackingSystem) ──map──▶ TripleBuffer
+///        │ key-frames ─▶ mapping thread (TrackingAndMapping) ──map──▶ TripleBuffer
 ///        │ ViewPost ─▶ NewestMailbox ─▶ render thread (LiveView)        │
 ///        ▼                                                              ▼
 ///   reconstruction thread (periodic; re-runs when the map grew) ──walls──▶ TripleBuffer ─▶ render
@@ -48,7 +48,7 @@
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/latency_histogram.hpp"
 #include "wallar/firmware/live_view.hpp"
-#include "wallar/firmware/tracking.hpp"
+#include "wallar/firmware/tracking_and_mapping.hpp"
 
 namespace wallar::firmware {
 

@@ -17,7 +17,7 @@
 #include "wallar/core/point_cloud.hpp"
 #include "wallar/drivers/recording/euroc.hpp"
 #include "wallar/dsp/eval/trajectory.hpp"
-#include "wallar/firmware/tracking.hpp"
+#include "wallar/firmware/tracking_and_mapping.hpp"
 
 namespace wallar::firmware {
 
