@@ -14,6 +14,7 @@
 #include "wallar/drivers/recording/tum_trajectory.hpp"
 #include "wallar/firmware/appliance.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/hil/replay_plan.hpp"
 #include "wallar/firmware/report.hpp"
 
 namespace wallar::cli {
@@ -73,12 +74,13 @@ nlohmann::json to_json(const firmware::ApplianceReport& r) {
   const firmware::TrackingCounters& c = r.tracking;
   nlohmann::json j = {
       {"source", r.source},
+      {"mode", firmware::to_string(r.mode)},
       {"display", r.display},
       {"stop_reason", r.stop_reason},
       {"wall_time_s", ns_to_s(r.wall_time_ns)},
       {"loops", r.loops_played},
       {"replay", firmware::to_json(r.replay)},
-      {"imu", {{"samples", r.imu_samples}, {"dropped", r.imu_dropped}}},
+      {"imu", {{"present", r.imu}, {"samples", r.imu_samples}, {"dropped", r.imu_dropped}}},
       {"frames",
        {{"in", r.frames_in}, {"overwritten", r.frames_overwritten}, {"tracked", r.frames_tracked}}},
       {"tracking",
@@ -130,13 +132,18 @@ int run_run_command(const RunArgs& args) {
   replay.start_offset_ns = s_to_ns(board.replay.start_offset_s);
   replay.skip = board.replay.skip;
   options.replay = args.flags.apply(replay);
-  options.loops = args.loops;
   options.max_duration_ns = s_to_ns(args.duration_s);
-  options.deterministic = args.deterministic;
+  options.mode =
+      args.deterministic ? firmware::ApplianceMode::kLockStep : firmware::ApplianceMode::kRealTime;
   options.view = !args.no_view;
   options.png_dir = fs::path(args.out) / "view";
   options.png_every = args.view_every;
-  for (const std::string& f : args.faults) options.faults.push_back(firmware::parse_fault(f));
+  // Test tooling between the replay and the pipeline (firmware/hil), only when asked for.
+  std::vector<firmware::hil::FaultSpec> faults;
+  for (const std::string& f : args.faults) faults.push_back(firmware::hil::parse_fault(f));
+  if (args.loops != 1 || !faults.empty()) {
+    options.replay_plan = firmware::hil::replay_plan(args.loops, std::move(faults));
+  }
   options.wall_method = score_method_named(args.method);
   options.seed = args.seed;
   options.realtime = !args.no_rt;

@@ -13,6 +13,7 @@
 #include "test_support.hpp"
 #include "wallar/firmware/appliance.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/hil/replay_plan.hpp"
 
 namespace wallar::firmware {
 namespace {
@@ -96,7 +97,7 @@ TEST(ApplianceHil, FastDeterministicReplayIsBitIdenticalAcrossRuns) {
   const BoardConfig board = sim_board();
   ApplianceOptions o = quiet_options();
   o.replay.rate = 0.0;
-  o.deterministic = true;
+  o.mode = ApplianceMode::kLockStep;
   o.seed = 7;
   const std::atomic<bool> stop{false};
   const ApplianceReport a = run_appliance(board, o, stop);
@@ -136,9 +137,10 @@ TEST(ApplianceHil, RecoversFromInjectedFaults) {
   const BoardConfig board = sim_board();
   ApplianceOptions o = quiet_options();
   o.replay.rate = 0.0;
-  o.deterministic = true;
-  o.faults = {parse_fault("corrupt-frame@0.3"), parse_fault("camera-stall@1.0+0.5"),
-              parse_fault("imu-unplug@1.6+0.25")};
+  o.mode = ApplianceMode::kLockStep;
+  o.replay_plan = hil::replay_plan(
+      1, {hil::parse_fault("corrupt-frame@0.3"), hil::parse_fault("camera-stall@1.0+0.5"),
+          hil::parse_fault("imu-unplug@1.6+0.25")});
   const std::atomic<bool> stop{false};
   const ApplianceReport r = run_appliance(board, o, stop);
 
@@ -163,6 +165,7 @@ TEST(ApplianceHil, RecoversFromInjectedFaults) {
 }
 
 TEST(ApplianceHil, FaultSpecsParseAndBadOnesNameThemselves) {
+  using hil::FaultSpec, hil::parse_fault, hil::to_string;
   const FaultSpec f = parse_fault("camera-stall@1.5+0.25");
   EXPECT_EQ(f.kind, FaultSpec::Kind::kCameraStall);
   EXPECT_DOUBLE_EQ(f.at_s, 1.5);
@@ -192,7 +195,7 @@ TEST(ApplianceSoak, TenMinutesOfLoopedReplayKeepMemoryFlat) {
   board.display.height_px = 360;
   ApplianceOptions o = quiet_options();
   o.replay.rate = 0.0;
-  o.loops = 300;  // 300 x 2.0 s = 10 min of sensor time
+  o.replay_plan = hil::replay_plan(300, {});  // 300 x 2.0 s = 10 min of sensor time
   o.rss_sample_period_ns = 500 * kNsPerMs;
   const std::atomic<bool> stop{false};
   const ApplianceReport r = run_appliance(board, o, stop);
