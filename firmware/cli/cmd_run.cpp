@@ -3,7 +3,8 @@
 /// @brief `wallar run --board FILE`: the appliance on a board (firmware/appliance.hpp): every
 /// module on its thread from the board file until the replay ends, SIGINT/SIGTERM, the exit
 /// input or --duration; SIGUSR1 prints the stats table meanwhile. Prints the wall model and a
-/// summary (--stats: the table of threads and stages) and writes them under --out.
+/// summary (--stats: the table of threads and stages) and writes them under --out, in the
+/// first body pose's world (as `wallar track` writes its files).
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -15,6 +16,7 @@
 #include "wallar/firmware/appliance.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/hil/replay_plan.hpp"
+#include "wallar/firmware/offline.hpp"
 #include "wallar/firmware/report.hpp"
 
 namespace wallar::cli {
@@ -48,7 +50,7 @@ nlohmann::json latency_json(const firmware::LatencySummary& l) {
           {"mean_ms", l.mean_ms}};
 }
 
-nlohmann::json to_json(const firmware::ApplianceReport& r) {
+nlohmann::json to_json(const firmware::ApplianceReport& r, const firmware::RunOutputs& out) {
   nlohmann::json threads = nlohmann::json::array();
   for (const firmware::ThreadRow& t : r.threads) {
     threads.push_back({{"name", t.name},
@@ -113,9 +115,10 @@ nlohmann::json to_json(const firmware::ApplianceReport& r) {
       {"stages", stages},
       {"memory_locked", r.memory_locked},
       {"max_rss_kb", r.max_rss_kb}};
-  if (r.room) {
-    j["walls"] = firmware::to_json(*r.room);
+  if (out.room) {
+    j["walls"] = firmware::to_json(*out.room);
     j["walls"]["mode"] = r.room_gravity ? "2-D (gravity from the IMU)" : "3-D (no gravity)";
+    j["walls"]["frame"] = "world: the first body pose";
   }
   return j;
 }
@@ -156,24 +159,19 @@ int run_run_command(const RunArgs& args) {
   const firmware::ApplianceReport report =
       firmware::run_appliance(board, options, stop_requested(), &stats_requested());
 
-  // Outputs: the wall model, the map coloured by surface, the trajectory, the summary.
-  nlohmann::json summary = to_json(report);
+  // Outputs in the first body pose's world: the wall model, the map coloured by surface, the
+  // trajectory (every frame tracking took), the summary.
+  const firmware::RunOutputs out = firmware::outputs_in_body_world(report);
+  nlohmann::json summary = to_json(report, out);
   summary["board"] = board.name;
   nlohmann::json outputs = {"run_summary.json", "trajectory.tum"};
-  {
-    std::vector<StampedPose> poses;
-    poses.reserve(report.trajectory.size());
-    for (const firmware::PoseRecord& p : report.trajectory)
-      poses.push_back({p.t_ns, p.T_world_body});
-    std::ofstream(fs::path(args.out) / "trajectory.tum") << recording::format_tum(poses);
-  }
-  if (report.room) {
+  std::ofstream(fs::path(args.out) / "trajectory.tum") << recording::format_tum(out.poses);
+  if (out.room) {
     std::ofstream(fs::path(args.out) / "walls.json") << summary["walls"].dump(2) << "\n";
     outputs.push_back("walls.json");
     if (report.map) {
-      cloud::write_ply_rgb(
-          fs::path(args.out) / "map.ply", report.map->points,
-          firmware::surface_colours(report.map->points, *report.room, options.wall_threshold_m));
+      cloud::write_ply_rgb(fs::path(args.out) / "map.ply", out.map,
+                           firmware::surface_colours(out.map, *out.room, options.wall_threshold_m));
       outputs.push_back("map.ply");
     }
   }
@@ -195,11 +193,11 @@ int run_run_command(const RunArgs& args) {
         static_cast<unsigned long long>(report.imu_dropped), report.map_points,
         report.map_keyframes, report.stop_reason.c_str(), ns_to_s(report.wall_time_ns));
     for (const std::string& e : report.events) std::printf("  event: %s\n", e.c_str());
-    if (report.room) {
-      std::printf("wall model (%s, %llu reconstructions, world = first left camera):\n",
+    if (out.room) {
+      std::printf("wall model (%s, %llu reconstructions, world = first body pose):\n",
                   report.room_gravity ? "2-D, gravity from the IMU" : "3-D, no gravity",
                   static_cast<unsigned long long>(report.reconstructions));
-      std::cout << firmware::to_text(*report.room);
+      std::cout << firmware::to_text(*out.room);
     } else {
       std::printf("wall model: none (the map has too few points)\n");
     }

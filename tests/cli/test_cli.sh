@@ -512,10 +512,14 @@ calibrate_imu_cam)
   expect_err "no such recording folder"
   ;;
 track)
-  run track "$rec" --out "$tmp/traj.txt" --map "$tmp/map.ply" --eval --gravity-aligned --json
+  run track "$rec" --out "$tmp/traj.txt" --map "$tmp/map.ply" --walls "$tmp/walls.json" --eval \
+      --gravity-aligned --json
   expect_rc 0
   [ "$(json "d['frames']")" = 40 ] || fail "frames"
   [ "$(json "d['tracking_frames']")" = 40 ] || fail "tracking frames"
+  [ "$(json "d['imu'], d['mode'], d['mapping']")" = "True every frame thread" ] || fail "mode: $(cat "$tmp/out")"
+  [ "$(json "d['events'], d['degraded']['camera_lost'] + d['degraded']['imu_lost']")" = "[] 0" ] || fail "degraded"
+  python3 -c "import json,sys; d=json.load(open('$tmp/out')); s=d['stage_time']; sys.exit(0 if d['frame_time']['p50_ms'] > 0 and s['stage1_track']['p50_ms'] > 0 and s['rectify']['max_ms'] > 0 else 1)" || fail "stage times: $(cat "$tmp/out")"
   python3 -c "import json,sys; d=json.load(open('$tmp/out')); sys.exit(0 if d['drift_m'] < 0.01 and d['drift_deg'] < 0.5 and d['floor']['free_fit_vs_ground_truth_gravity_deg'] < 2.0 else 1)" || fail "accuracy: $(cat "$tmp/out")"
   # TUM: t x y z qx qy qz qw, one line per frame, the first pose the world's origin.
   [ "$(grep -vc '^#' "$tmp/traj.txt")" = 40 ] || fail "trajectory lines"
@@ -523,6 +527,20 @@ track)
   # The map reads back, with its observation counts, and holds the floor 0.93 m down.
   run walls "$tmp/map.ply" --gravity 0,0,-1 --json -; expect_rc 0
   python3 -c "import json,sys; d=json.load(open('$tmp/out')); f=[w for w in d['surfaces'] if w['kind']=='floor']; sys.exit(0 if f and abs(f[0]['d'] + 0.93) < 0.1 else 1)" || fail "floor in the map: $(cat "$tmp/out")"
+  # The reconstruction's final surfaces (the wallar walls schema, the same world): a floor
+  # 0.93 m below the first body pose facing up, and they read back as a wall model.
+  python3 - "$tmp/walls.json" <<'PY' || fail "walls.json: $(cat "$tmp/walls.json")"
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d['mode'].startswith('2-D') and 'z is up' in d['frame'], (d['mode'], d['frame'])
+floors = [s for s in d['surfaces'] if s['kind'] == 'floor']
+assert len(floors) == 1, d['surfaces']
+f = floors[0]
+assert f['normal'][2] > 0.99 and abs(f['d'] + 0.93) < 0.1 and f['inliers'] > 100, f
+for s in d['surfaces']:
+    assert len(s['extent']) >= 3 and abs(sum(n * n for n in s['normal']) - 1) < 1e-9, s
+PY
+  run render "$rec" --out "$tmp/v" --walls "$tmp/walls.json" --every 40 --json; expect_rc 0
   # A recording of one stereo pair makes a map.
   cp -r "$rec" "$tmp/one"
   for c in cam0 cam1; do head -n 2 "$rec/mav0/$c/data.csv" >"$tmp/one/mav0/$c/data.csv"; done
@@ -554,13 +572,17 @@ render)
   run render "$rec" --out "$tmp/again" --walls "$tmp/view/walls.json" --every 40 --json; expect_rc 0
   [ "$(json "d['walls']")" = "$(python3 -c "import json; print(len(json.load(open('$tmp/view/walls.json'))['surfaces']))")" ] || fail "walls given"
   [ "$(json "d['written']")" = 1 ] || fail "written with --walls"
-  # Real time (4x here): tracking on the replay thread, the renderer on its own drawing the
-  # newest frame; every posted frame is drawn or counted as skipped, latencies are measured.
+  # Real time (4x here): the appliance with its render thread drawing the newest frame; every
+  # delivered frame is tracked and posted or overwritten (counted), every posted frame drawn or
+  # skipped, latencies are measured.
   run render "$rec" --out "$tmp/rt" --walls "$tmp/view/walls.json" --realtime --rate 4 --json
   expect_rc 0
-  [ "$(json "d['posted']")" = 40 ] || fail "posted"
-  [ "$(json "d['drawn'] + d['skipped']")" = 40 ] || fail "drawn + skipped"
+  [ "$(json "d['frames_in'], d['posted'] + d['frames_overwritten'], d['walls_source']")" = "40 40 given" ] || fail "posted: $(cat "$tmp/out")"
+  [ "$(json "d['drawn'] + d['skipped'] == d['posted'] > 0")" = True ] || fail "drawn + skipped"
   python3 -c "import json,sys; d=json.load(open('$tmp/out')); l=d['camera_to_display_latency']; sys.exit(0 if 0 < l['p50_ms'] <= l['max_ms'] and d['tracking_time']['p50_ms'] > 0 else 1)" || fail "latency: $(cat "$tmp/out")"
+  # Without --walls the view draws the reconstruction's walls as they come.
+  run render "$rec" --out "$tmp/rt2" --realtime --rate 4 --json; expect_rc 0
+  [ "$(json "d['walls_source'], d['walls'] >= 1")" = "reconstruction True" ] || fail "live walls: $(cat "$tmp/out")"
   ;;
 render_bad_input)
   run render "$tmp/nowhere" --out "$tmp/o"; expect_rc 2; one_err_line

@@ -16,13 +16,13 @@ void LiveModule::start(source::SensorSink& sink, drivers::ImuSampleSink& imu_sin
   cameras_ = std::make_unique<LiveStereo>(board_, sink);
   if (board_.imu.driver != "none") imu_ = std::make_unique<LiveImu>(board_, imu_sink);
   capture_ = std::make_unique<RtThread>(thread_spec("capture", realtime), [this, &stop] {
+    const SetOnExit done(capture_done_);
     cameras_->run(std::numeric_limits<TimeNs>::max(), stop);
-    capture_done_.store(true, std::memory_order_release);
   });
   if (imu_) {
     imu_thread_ = std::make_unique<RtThread>(thread_spec("imu", realtime), [this, &stop] {
+      const SetOnExit done(imu_done_);
       imu_->run(std::numeric_limits<TimeNs>::max(), stop);
-      imu_done_.store(true, std::memory_order_release);
     });
   } else {
     imu_done_.store(true);

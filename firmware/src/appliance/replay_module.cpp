@@ -24,6 +24,7 @@ ReplayModule::ReplayModule(const recording::EurocRecording& rec,
 void ReplayModule::start(source::SensorSink& sink, drivers::ImuSampleSink& /*imu_sink*/,
                          bool realtime, const std::atomic<bool>& stop) {
   thread_ = std::make_unique<RtThread>(thread_spec("replay", realtime), [this, &sink, &stop] {
+    const SetOnExit done(done_);
     for (int loop = 0; !stop.load(); ++loop) {
       source::SensorSink* into = plan_       ? plan_->begin_loop(loop, sink)
                                  : loop == 0 ? &sink
@@ -36,7 +37,6 @@ void ReplayModule::start(source::SensorSink& sink, drivers::ImuSampleSink& /*imu
       if (plan_) plan_->end_loop(s);
       if (s.pairs_delivered == 0 && s.imu_samples == 0) break;
     }
-    done_.store(true, std::memory_order_release);
   });
 }
 

@@ -21,10 +21,12 @@
 #include "wallar/firmware/appliance/stats.hpp"
 #include "wallar/firmware/appliance/thread_table.hpp"
 #include "wallar/firmware/appliance/tracking_thread.hpp"
+#include "wallar/firmware/offline.hpp"
 #include "wallar/firmware/periodic.hpp"
 #include "wallar/firmware/rt_thread.hpp"
 #include "wallar/firmware/systemd_notify.hpp"
 #include "wallar/firmware/wakeup.hpp"
+#include "wallar/firmware/world_frames.hpp"
 
 namespace wallar::firmware {
 namespace {
@@ -52,6 +54,18 @@ const char* to_string(ApplianceMode mode) {
 ApplianceReport run_appliance(const BoardConfig& board, const ApplianceOptions& options,
                               const std::atomic<bool>& stop, std::atomic<bool>* stats_request) {
   return run_modules(board, options, stop, stats_request, nullptr);
+}
+
+ApplianceReport run_over_recording(const recording::EurocRecording& rec, const BoardConfig& board,
+                                   const ApplianceOptions& options, const std::atomic<bool>& stop) {
+  if (rec.cams[0].frames.empty() || rec.cams[1].frames.empty()) {
+    throw InputError(rec.mav0.string() + ": the recording has no stereo frames");
+  }
+  BoardConfig replay_board = board;
+  replay_board.source = BoardConfig::Source::kReplay;
+  replay_board.replay.recording = rec.mav0;
+  if (replay_board.name.empty()) replay_board.name = "offline";
+  return run_modules(replay_board, options, stop, nullptr, &rec);
 }
 
 namespace {
@@ -144,7 +158,12 @@ ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& op
     HeadsetViewOptions vo = view_options(board.display);
     vo.png_dir = options.png_dir;
     vo.png_every = options.png_dir.empty() ? 0 : std::max(1, options.png_every);
-    view = std::make_unique<LiveView>(rig, vo, WallModel{}, rig.cams[0].rate_hz, &walls_channel,
+    // Given walls are in the first body pose's world; the view draws in the tracker's.
+    WallModel walls = options.view_walls
+                          ? transformed(*options.view_walls, report.T_body_rect.inverse())
+                          : WallModel{};
+    view = std::make_unique<LiveView>(rig, vo, std::move(walls), rig.cams[0].rate_hz,
+                                      options.view_walls ? nullptr : &walls_channel,
                                       thread_spec("render", realtime));
     report.display = view->display();
     tracker->set_view(view.get());
@@ -320,6 +339,8 @@ ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& op
     std::fflush(nullptr);
     std::_Exit(1);
   }
+  // A source that failed while the supervisor saw it finish: its error still counts.
+  if (!source_error) source_error = source->error();
   tracking_thread.join();
   if (reconstruct_thread) reconstruct_thread->join();
   const DurationNs run_ns = monotonic_now_ns() - t_start;

@@ -2,7 +2,9 @@
 /// @file appliance.hpp
 /// @brief The appliance (thesis fig. 3.3-3.4): the supervisor that builds every module from a
 /// board file, couples their channels, runs them on the threads of one table, watches their
-/// health and stops them in two phases (`wallar run`).
+/// health and stops them in two phases. Every command that tracks runs it: `wallar run` in
+/// real time, `wallar track`, `render` and `eval real` over a recording, as fast as tracking
+/// goes.
 ///
 /// Modules (firmware/appliance/) and channels:
 ///
@@ -20,11 +22,12 @@
 /// overwritten and counted); every frame (replay only: the replay waits until tracking took each
 /// frame, mapping on its thread, reconstruction periodic: `wallar track`); lock step (replay
 /// only: every frame, mapping on the tracking thread after each key-frame, reconstruction at
-/// fixed points: bit-identical from run to run for a seed; `wallar run --deterministic`).
+/// fixed points: bit-identical from run to run for a seed; `wallar track --lockstep`, `wallar
+/// run --deterministic`, `render`, `eval real`).
 ///
 /// Worlds: the modules work in the tracker's world (its first rectified left camera); the
 /// report's trajectory, map and walls are in that world, and T_body_rect takes them into the
-/// first body pose's.
+/// first body pose's, the world of the commands' files (offline.hpp).
 ///
 /// Threading: run_appliance() is called from one thread, which becomes the supervisor; `stop`
 /// and `stats_request` may be set from any thread or a signal handler.
@@ -70,6 +73,8 @@ struct ApplianceOptions {
   bool view = true;                //!< draw the headset view (render thread)
   std::filesystem::path png_dir;   //!< write every `png_every`th drawn view here (empty: none)
   int png_every = 0;
+  /// Draw this wall model (in the first body pose's world) instead of the reconstruction's.
+  std::optional<WallModel> view_walls;
   bool use_gyro = true;  //!< the gyro's rotation as the tracker's prior
   dsp::ScoreMethod wall_method = dsp::ScoreMethod::kBsf;
   double wall_threshold_m = 0.04;  //!< inlier band of the tracker's map

@@ -43,6 +43,19 @@ inline DurationNs frame_period_of(const CameraCalibration& cam) {
   return cam.rate_hz > 0 ? static_cast<DurationNs>(1e9 / cam.rate_hz) : 50 * kNsPerMs;
 }
 
+/// Sets `flag` when the scope ends, also by an exception: a source thread says it is done
+/// either way, so the stop never waits for a thread that already failed.
+class SetOnExit {
+ public:
+  explicit SetOnExit(std::atomic<bool>& flag) : flag_(flag) {}
+  ~SetOnExit() { flag_.store(true, std::memory_order_release); }
+  SetOnExit(const SetOnExit&) = delete;
+  SetOnExit& operator=(const SetOnExit&) = delete;
+
+ private:
+  std::atomic<bool>& flag_;
+};
+
 /// Waits until `flag` is set or `timeout_ns` passed; true when it was set.
 bool wait_flag(const std::atomic<bool>& flag, DurationNs timeout_ns);
 
