@@ -260,8 +260,29 @@ eval_bad_input)
   [ -e "$tmp/a" ] && fail "a rejected eval all left $tmp/a behind"
   ;;
 eval_real)
-  # The room of the bundled EuRoC cut, its figure, table and summary.
-  run eval real --recording "$rec" --out "$tmp/ev" --json; expect_rc 0
+  # The room of the bundled EuRoC cut in the appliance's map (the default: lock step over the
+  # whole recording), its figure, table and summary.
+  run eval real --recording "$rec" --out "$tmp/ap" --json; expect_rc 0
+  for f in real_overlay.png real_map.csv real_summary.json; do
+    [ -s "$tmp/ap/$f" ] || fail "no $f (appliance map)"
+  done
+  python3 - "$tmp/ap" "$tmp/out" <<'PY' || fail "eval real outputs (appliance map)"
+import json, sys
+ev, out = sys.argv[1], sys.argv[2]
+d = json.load(open(out))
+assert d == json.load(open(f'{ev}/real_summary.json')), 'stdout and real_summary.json differ'
+assert d['map_source'] == 'appliance' and d['pairs_requested'] is None, d
+assert d['pairs_used'] == 40 and d['points'] > 150, (d['pairs_used'], d['points'])
+floors = [s for s in d['surfaces'] if s['kind'] == 'floor']
+assert len(floors) == 1, d['surfaces']
+f = d['floor']
+assert 0.5 < f['distance_below_camera_m'] < 1.5, f
+assert f['free_fit_vs_ground_truth_gravity_deg'] < 2.0, f
+rows = open(f'{ev}/real_map.csv').read().splitlines()
+assert len(rows) == d['points'] + 1, (len(rows), d['points'])
+PY
+  # The study's own sparse map from ORB matches of 8 stereo pairs (--map-source orb).
+  run eval real --recording "$rec" --out "$tmp/ev" --map-source orb --json; expect_rc 0
   for f in real_overlay.png real_map.csv real_summary.json; do
     [ -s "$tmp/ev/$f" ] || fail "no $f"
   done
@@ -271,6 +292,7 @@ import json, struct, sys, zlib
 ev, out = sys.argv[1], sys.argv[2]
 d = json.load(open(out))
 assert d == json.load(open(f'{ev}/real_summary.json')), 'stdout and real_summary.json differ'
+assert d['map_source'] == 'orb', d['map_source']
 assert d['ground_truth'] is True and d['pairs_used'] == 8, d
 assert d['points'] > 2000, d['points']
 floors = [s for s in d['surfaces'] if s['kind'] == 'floor']
@@ -315,7 +337,7 @@ for y in range(h):
     prev = line
 assert red > 2000, f'{red} floor-coloured pixels'
 PY
-  run eval real --recording "$rec" --out "$tmp/ev2" --pairs 2; expect_rc 0
+  run eval real --recording "$rec" --out "$tmp/ev2" --map-source orb --pairs 2; expect_rc 0
   expect_out "from 2 of 40 stereo pairs"; expect_out "deg from ground-truth gravity"
   [ -s "$tmp/ev2/real_summary.json" ] || fail "no real_summary.json with --pairs 2"
   ;;
@@ -323,9 +345,12 @@ eval_real_bad_input)
   run eval real --recording "$tmp/nope" --out "$tmp/ev"; expect_rc 2; one_err_line
   expect_err "$tmp/nope: no such recording folder"
   [ -e "$tmp/ev/real_summary.json" ] && fail "real_summary.json left behind (missing recording)"
-  run eval real --recording "$rec" --out "$tmp/ev" --pairs 41; expect_rc 2; one_err_line
-  expect_err "cam0/data.csv: has 40 stereo pairs, the study asks for 41"
+  run eval real --recording "$rec" --out "$tmp/ev" --map-source orb --pairs 41; expect_rc 2
+  one_err_line; expect_err "cam0/data.csv: has 40 stereo pairs, the study asks for 41"
   [ -e "$tmp/ev/real_summary.json" ] && fail "real_summary.json left behind (too few pairs)"
+  run eval real --recording "$rec" --out "$tmp/ev" --pairs 4; expect_rc 2; one_err_line
+  expect_err "--pairs chooses the stereo pairs of --map-source orb"
+  run eval real --recording "$rec" --out "$tmp/ev" --map-source tsdf; expect_rc 2
   run eval real --out "$tmp/ev"; expect_rc 2; expect_err "recording"
   mkdir -p "$tmp/r"; cp -r "$rec/mav0" "$tmp/r/"; chmod -R u+w "$tmp/r"
   first=$(sed -n 2p "$tmp/r/mav0/cam0/data.csv" | cut -d, -f2 | tr -d '\r')
@@ -337,11 +362,11 @@ eval_real_bad_input)
   # Without ground truth the study runs and says so.
   cp "$rec/mav0/cam0/data/$first" "$tmp/r/mav0/cam0/data/$first"
   rm -r "$tmp/r/mav0/state_groundtruth_estimate0"
-  run eval real --recording "$tmp/r" --out "$tmp/ev" --pairs 2 --json; expect_rc 0
+  run eval real --recording "$tmp/r" --out "$tmp/ev" --map-source orb --pairs 2 --json; expect_rc 0
   [ "$(json "d['ground_truth']")" = False ] || fail "ground truth reported"
   [ "$(json "d['imu_gravity_vs_ground_truth_deg']")" = None ] || fail "IMU vs ground truth"
   [ "$(json "d['floor']['free_fit_vs_ground_truth_gravity_deg']")" = None ] || fail "floor vs truth"
-  run eval real --recording "$tmp/r" --out "$tmp/ev" --pairs 2; expect_rc 0
+  run eval real --recording "$tmp/r" --out "$tmp/ev" --map-source orb --pairs 2; expect_rc 0
   expect_out "no ground truth in this recording"
   ;;
 eval_marker)
