@@ -573,6 +573,48 @@ PY
   [ "$(json "d['frames']")" = 1 ] || fail "one pair: frames"
   python3 -c "import json,sys; sys.exit(0 if json.load(open('$tmp/out'))['map_points'] > 100 else 1)" || fail "one pair: map"
   ;;
+track_run_same)
+  # One pipeline: `wallar track --lockstep` and `wallar run --deterministic` (the sim board
+  # replays the same recording) write the same trajectory, byte for byte, and the same walls.
+  run track "$rec" --lockstep --out "$tmp/track.tum" --walls "$tmp/track_walls.json" --json
+  expect_rc 0; [ "$(json "d['mode']")" = "lock step" ] || fail "mode"
+  run run --board "$src/board/sim.yaml" --out "$tmp/o" --deterministic --fast --no-view --json
+  expect_rc 0
+  [ "$(grep -c . "$tmp/track.tum")" = 40 ] || fail "track.tum lines"
+  cmp "$tmp/track.tum" "$tmp/o/trajectory.tum" || fail "trajectories differ: $(diff "$tmp/track.tum" "$tmp/o/trajectory.tum" | head -4)"
+  python3 - "$tmp/track_walls.json" "$tmp/o/walls.json" <<'PY' || fail "walls differ"
+import json, sys
+a, b = (json.load(open(p)) for p in sys.argv[1:3])
+key = lambda d: [(s['id'], s['kind'], s['normal'], s['d'], s['inliers']) for s in d['surfaces']]
+assert key(a) == key(b) and len(a['surfaces']) >= 2, (key(a), key(b))
+PY
+  ;;
+track_no_imu)
+  # Vision-only recordings: no imu0 folder at all, or an imu0/data.csv with its header only.
+  # Accepted by track, run and render with nothing on stderr; no IMU is not a lost IMU.
+  mkdir -p "$tmp/noimu/mav0"
+  for d in cam0 cam1 state_groundtruth_estimate0; do cp -r "$rec/mav0/$d" "$tmp/noimu/mav0/"; done
+  cp "$rec/mav0/body.yaml" "$tmp/noimu/mav0/" 2>/dev/null
+  cp -r "$tmp/noimu" "$tmp/header"; cp -r "$rec/mav0/imu0" "$tmp/header/mav0/"; chmod -R u+w "$tmp/header"
+  head -n 1 "$rec/mav0/imu0/data.csv" >"$tmp/header/mav0/imu0/data.csv"
+  for r in noimu header; do
+    run track "$tmp/$r" --lockstep --eval --walls "$tmp/$r.json" --json; expect_rc 0
+    [ -s "$tmp/err" ] && fail "$r: stderr: $(cat "$tmp/err")"
+    [ "$(json "d['imu'], d['frames'], d['tracking_frames'], d['events']")" = "False 40 40 []" ] || fail "$r: $(cat "$tmp/out")"
+    [ "$(json "d['degraded']['imu_lost'], d['degraded']['camera_lost'], 'floor' in d")" = "0 0 False" ] || fail "$r: degraded"
+    python3 -c "import json,sys; d=json.load(open('$tmp/out')); sys.exit(0 if d['drift_m'] < 0.01 else 1)" || fail "$r: drift"
+    python3 -c "import json,sys; d=json.load(open('$tmp/$r.json')); sys.exit(0 if d['mode'].startswith('3-D') and d['surfaces'] else 1)" || fail "$r: walls"
+  done
+  run track "$tmp/noimu" --gravity-aligned; expect_rc 2; one_err_line; expect_err "--gravity-aligned needs an IMU"
+  printf 'board: {name: vision}\nsource: replay\nreplay: {recording: %s, rate: 0}\n' "$tmp/noimu" >"$tmp/vision.yaml"
+  run run --board "$tmp/vision.yaml" --out "$tmp/o" --deterministic --no-view --json; expect_rc 0
+  [ "$(json "d['imu']['present'], d['imu']['samples'], d['degraded']['imu_lost'], d['events']")" = "False 0 0 []" ] || fail "run: $(cat "$tmp/out")"
+  [ "$(json "d['walls']['mode']")" = "3-D (no gravity)" ] || fail "run: walls mode"
+  grep -v "^wallar: board vision" "$tmp/err" | grep -q . && fail "run: stderr: $(cat "$tmp/err")"
+  run render "$tmp/noimu" --out "$tmp/view" --every 40 --width 320 --height 120 --json; expect_rc 0
+  [ -s "$tmp/err" ] && fail "render: stderr: $(cat "$tmp/err")"
+  python3 -c "import json,sys; d=json.load(open('$tmp/view/walls.json')); sys.exit(0 if 'no IMU' in d['frame'] else 1)" || fail "render: frame"
+  ;;
 track_bad_input)
   run track "$tmp/nowhere"; expect_rc 2; one_err_line
   run track "$rec" --board "$tmp/none.yaml"; expect_rc 2; one_err_line
