@@ -43,6 +43,10 @@ ApplianceOptions offline_options(ApplianceMode mode) {
   o.view = false;
   o.realtime = false;
   o.log = [](const std::string&) {};
+  // The end of a replay is noticed within a tick, and the reconstruct thread's sleep bounds
+  // the stop: short periods keep an offline run as long as its tracking.
+  o.supervisor_period_ns = 10 * kNsPerMs;
+  o.reconstruct_period_ns = 50 * kNsPerMs;
   return o;
 }
 

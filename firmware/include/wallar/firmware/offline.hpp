@@ -26,7 +26,8 @@
 namespace wallar::firmware {
 
 /// What offline commands run with: `mode`, no view, no real-time priorities, the replay as
-/// fast as the pipeline takes it, and no log on stderr (the events are in the report).
+/// fast as the pipeline takes it, no log on stderr (the events are in the report), and a
+/// supervisor and reconstruct thread that tick faster (10 ms, 50 ms).
 ApplianceOptions offline_options(ApplianceMode mode);
 
 /// The appliance over `rec`, as a replay board whose tracker sizes (and display) are `board`'s
