@@ -10,7 +10,7 @@
 #include <cstdlib>
 #include <new>
 
-#include "wallar/firmware/appliance.hpp"
+#include "wallar/firmware/appliance/allocation_count.hpp"
 
 #if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
 

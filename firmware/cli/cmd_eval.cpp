@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "study_map.hpp"
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/recording/euroc.hpp"
 #include "wallar/eval/experiments.hpp"
@@ -186,6 +187,7 @@ int run_all_command(const AllArgs& a) {
   if (stop_requested().load()) return kExitInterrupted;
   eval::RealStudyOptions real;
   real.recording = a.recording;
+  real.appliance_map = appliance_map_for_study;
   all["real"] = eval::run_real_study(real, out);
   std::cerr << "real: done\n";
   if (eval::aruco_available()) {

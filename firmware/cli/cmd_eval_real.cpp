@@ -1,13 +1,16 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file cmd_eval_real.cpp
 /// @brief `wallar eval real --recording DIR`: the room in a real recording, the floor against
-/// IMU and ground-truth gravity, and an overlay figure (tools/eval/real.hpp).
+/// IMU and ground-truth gravity, and an overlay figure (tools/eval/real.hpp). The map is the
+/// appliance's (lock step over the whole recording), or with --map-source orb the study's own
+/// sparse map from ORB matches of --pairs stereo pairs.
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <string>
 
 #include "commands.hpp"
+#include "study_map.hpp"
 #include "wallar/core/error.hpp"
 #include "wallar/eval/real.hpp"
 
@@ -17,7 +20,9 @@ namespace {
 struct EvalRealArgs {
   std::string recording;
   std::string out = "eval_out";
+  std::string map_source = "appliance";
   int pairs = 8;
+  bool pairs_given = false;
   double threshold_m = 0.05;
   std::uint64_t seed = 1;
   bool json = false;
@@ -35,9 +40,10 @@ std::string to_text(const nlohmann::json& d) {
   std::string text;
   char buf[320];
   std::snprintf(buf, sizeof buf,
-                "wallar eval real: %s\nsparse map: %zu points from %zu of %zu stereo pairs (%s), "
-                "room search %.1f ms, %zu surfaces:\n",
-                d["recording"].get<std::string>().c_str(), d["points"].get<std::size_t>(),
+                "wallar eval real: %s\nsparse map (%s): %zu points from %zu of %zu stereo pairs "
+                "(%s), room search %.1f ms, %zu surfaces:\n",
+                d["recording"].get<std::string>().c_str(),
+                d["map_description"].get<std::string>().c_str(), d["points"].get<std::size_t>(),
                 d["pairs_used"].get<std::size_t>(), d["pairs_in_recording"].get<std::size_t>(),
                 d["gravity_aligned"].get<bool>() ? "gravity-aligned" : "3-D: IMU not at rest",
                 d["room_time_ms"].get<double>(), d["surfaces"].size());
@@ -76,8 +82,16 @@ int run_eval_real_command(const EvalRealArgs& a) {
   if (!std::filesystem::is_directory(a.recording, ec)) {
     throw_input_error(a.recording, 0, "no such recording folder");
   }
+  if (a.pairs_given && a.map_source != "orb") {
+    throw InputError(
+        "--pairs chooses the stereo pairs of --map-source orb (the appliance's map "
+        "takes every frame)");
+  }
   eval::RealStudyOptions options;
   options.recording = a.recording;
+  options.map_source =
+      a.map_source == "orb" ? eval::RealMapSource::kOrb : eval::RealMapSource::kAppliance;
+  options.appliance_map = appliance_map_for_study;
   options.pairs = a.pairs;
   options.threshold_m = a.threshold_m;
   options.seed = a.seed;
@@ -101,9 +115,16 @@ void add_eval_real_command(CLI::App& eval, std::function<int()>& run) {
       ->required();
   cmd->add_option("--out", a->out, "Folder for real_overlay.png, real_map.csv, real_summary.json")
       ->capture_default_str();
-  cmd->add_option("--pairs", a->pairs, "Stereo pairs for the sparse map, spread over the recording")
-      ->check(CLI::Range(1, 1000))
+  cmd->add_option("--map-source", a->map_source,
+                  "appliance: the appliance's map over the whole recording (lock step); orb: a "
+                  "sparse map from ORB matches of --pairs stereo pairs")
+      ->check(CLI::IsMember({"appliance", "orb"}))
       ->capture_default_str();
+  cmd->add_option("--pairs", a->pairs,
+                  "--map-source orb: stereo pairs for the sparse map, spread over the recording")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str()
+      ->each([a](const std::string&) { a->pairs_given = true; });
   cmd->add_option("--threshold-m", a->threshold_m, "Inlier threshold [m]")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();

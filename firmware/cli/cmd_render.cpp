@@ -1,14 +1,17 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file cmd_render.cpp
 /// @brief `wallar render RECORDING --out DIR [--walls walls.json]`: the headset view of a
-/// recording, offline. Without --walls it tracks the recording and finds the walls in the map
-/// as the firmware would (gravity-aligned world, z up); every Nth frame is written as PNG.
+/// recording, offline. The appliance's modules track it in lock step (as `wallar track
+/// --lockstep`) and reconstruct its walls (unless --walls gives them); then every frame is
+/// drawn with its pose, every Nth written as PNG.
 ///
-/// --realtime replays the recording at its own pace through the tracking system while the
-/// visualization thread draws the newest frame (render time, camera-to-display latency).
+/// --realtime runs the appliance at --rate with its render thread on: the view draws the
+/// newest frame tracking posted and the reconstruction's newest walls (or the given ones), and
+/// the command reports tracking time, render time and camera-to-display latency.
 ///
-/// Frames: the world is the tracker's gravity-aligned world (`wallar track --gravity-aligned`);
-/// a walls.json given with --walls must be in that frame (the one this command writes is).
+/// Frames: the world is the first body pose turned so z is up (`wallar track
+/// --gravity-aligned`), or without an IMU the first body pose; a walls.json given with --walls
+/// must be in that frame (the one this command writes is).
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -19,13 +22,11 @@
 #include "percentiles.hpp"
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/recording/euroc.hpp"
-#include "wallar/drivers/source/replay_source.hpp"
-#include "wallar/dsp/walls/room.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/headset_view.hpp"
-#include "wallar/firmware/live_view.hpp"
+#include "wallar/firmware/offline.hpp"
 #include "wallar/firmware/report.hpp"
-#include "wallar/firmware/track_recording.hpp"
+#include "wallar/firmware/world_frames.hpp"
 
 namespace wallar::cli {
 namespace {
@@ -44,11 +45,6 @@ struct RenderArgs {
   std::vector<double> lens;
   bool json = false;
 };
-
-// Inlier band of the tracker's map (its points are within ~2 cm of the surfaces, docs/results.md).
-constexpr double kMapThresholdM = 0.04;
-
-std::int64_t render_clock_ns() { return monotonic_now_ns(); }
 
 /// The stereo pair of the recording at left time `t_ns` (right: the nearest within 2 ms).
 StereoFrame load_pair(const recording::EurocRecording& rec, TimeNs t_ns, std::uint64_t sequence) {
@@ -69,63 +65,59 @@ StereoFrame load_pair(const recording::EurocRecording& rec, TimeNs t_ns, std::ui
   return f;
 }
 
-/// Replays the recording at `rate` through the tracking system (mapping on its thread, as on
-/// the device) while the visualization thread draws the newest frame: the end-to-end latency.
+/// The appliance at `rate` with its render thread drawing the newest frame tracking posted:
+/// the end-to-end latency. `walls` (in the world of the files, `T_world_body0` from the first
+/// body pose's) replace the reconstruction's when given.
 int run_realtime(const RenderArgs& a, const recording::EurocRecording& rec,
-                 const firmware::BoardConfig& board, const firmware::TrackRecordingResult& offline,
-                 const WallModel& walls, const firmware::HeadsetViewOptions& view_options) {
-  const RigCalibration rig = rec.rig();
-  firmware::TrackingSystem system(rig, firmware::tracking_options(board.tracking),
-                                  &render_clock_ns);
-  firmware::LiveView live(rig, view_options, walls, rig.cams[0].rate_hz);
-  struct Sink final : source::SensorSink {
-    Sink(firmware::TrackingSystem& s, firmware::LiveView& v, const SE3d& world, const SE3d& rect)
-        : system(s), view(v), T_world_tracker(world), T_rect_body(rect.inverse()) {
-      track_ns.reserve(1 << 15);
-    }
-    void on_imu(const ImuSample& sample) override { system.on_imu(sample); }
-    void on_stereo(const StereoFrame& frame) override {
-      const dsp::TrackResult r = system.on_stereo(frame);
-      if (track_ns.size() < track_ns.capacity()) track_ns.push_back(r.times.total_ns);
-      view.post(
-          {frame, frame.left.publish_t_ns, T_world_tracker * r.T_world_cam * T_rect_body, r.state});
-    }
-    firmware::TrackingSystem& system;
-    firmware::LiveView& view;
-    SE3d T_world_tracker, T_rect_body;
-    std::vector<std::int64_t> track_ns;
-  } sink(system, live, offline.T_world_tracker, offline.T_body_rect);
-  source::ReplayOptions replay;
-  replay.rate = a.rate;
-  const source::ReplayStats replay_stats =
-      source::ReplaySource(rec, replay).run(sink, stop_requested());
-  system.finish();
-  const firmware::LiveViewStats s = live.stop();
+                 const firmware::BoardConfig& board, const std::optional<WallModel>& walls,
+                 const SE3d& T_world_body0) {
+  firmware::ApplianceOptions options =
+      firmware::offline_options(firmware::ApplianceMode::kRealTime);
+  options.replay.rate = a.rate;
+  options.view = true;
+  if (a.every > 0) {
+    options.png_dir = a.out;
+    options.png_every = a.every;
+  }
+  if (walls) options.view_walls = firmware::transformed(*walls, T_world_body0.inverse());
+  const firmware::ApplianceReport report =
+      firmware::run_over_recording(rec, board, options, stop_requested());
+  const firmware::LiveViewStats& s = report.view;
+  std::vector<std::int64_t> track_ns;
+  for (const firmware::PoseRecord& r : report.trajectory) track_ns.push_back(r.times.total_ns);
   const Percentiles render = percentiles(s.view.render_ns);
   const Percentiles latency = percentiles(s.view.latency_ns);
-  const Percentiles track = percentiles(sink.track_ns);
+  const Percentiles track = percentiles(track_ns);
+  const std::size_t surfaces = walls         ? walls->walls.size()
+                               : report.room ? report.room->model.walls.size()
+                                             : 0;
   nlohmann::json summary = {{"recording", a.recording},
                             {"mode", "realtime"},
                             {"rate", a.rate},
                             {"display", s.display},
+                            {"frames_in", report.frames_in},
+                            {"frames_overwritten", report.frames_overwritten},
                             {"posted", s.posted},
                             {"drawn", s.view.frames},
                             {"skipped", s.skipped},
                             {"present_failures", s.view.present_failures},
                             {"written", s.view.written},
-                            {"walls", walls.walls.size()},
+                            {"walls", surfaces},
+                            {"walls_source", walls ? "given" : "reconstruction"},
                             {"tracking_time", to_json(track)},
                             {"render_time", to_json(render)},
                             {"camera_to_display_latency", to_json(latency)},
-                            {"replay", firmware::to_json(replay_stats)}};
+                            {"replay", firmware::to_json(report.replay)}};
   std::ofstream(fs::path(a.out) / "render_summary.json") << summary.dump(2) << "\n";
   if (a.json) {
     std::cout << summary.dump(2) << "\n";
   } else {
     std::printf(
-        "wallar render --realtime: %llu frames posted at %.2gx, %llu drawn on %s, %llu "
-        "skipped (newer frame waiting)\n",
-        static_cast<unsigned long long>(s.posted), a.rate,
+        "wallar render --realtime: %llu of %llu frames tracked and posted at %.2gx (%llu "
+        "overwritten), %llu drawn on %s, %llu skipped (newer frame waiting)\n",
+        static_cast<unsigned long long>(s.posted),
+        static_cast<unsigned long long>(report.frames_in), a.rate,
+        static_cast<unsigned long long>(report.frames_overwritten),
         static_cast<unsigned long long>(s.view.frames), s.display.c_str(),
         static_cast<unsigned long long>(s.skipped));
     std::printf("  tracking per frame: p50 %.2f ms, p99 %.2f; render: p50 %.2f ms, p99 %.2f\n",
@@ -133,71 +125,73 @@ int run_realtime(const RenderArgs& a, const recording::EurocRecording& rec,
     std::printf("  camera-to-display latency: p50 %.2f ms, p99 %.2f, max %.2f\n", latency.p50_ms,
                 latency.p99_ms, latency.max_ms);
   }
-  return stop_requested().load() ? kExitInterrupted : kExitOk;
+  return report.interrupted || stop_requested().load() ? kExitInterrupted : kExitOk;
 }
 
 int run_render(const RenderArgs& a) {
   const recording::EurocRecording rec = recording::read_euroc(a.recording);
-  const firmware::BoardConfig board =
+  firmware::BoardConfig board =
       a.board.empty() ? firmware::BoardConfig{} : firmware::load_board(a.board);
-  // The whole recording tracked (map on the tracking thread: repeatable), as `wallar track`.
-  firmware::TrackRecordingOptions track_options;
-  track_options.tracking = firmware::tracking_options(board.tracking);
-  track_options.tracking.mapping_thread = false;
-  track_options.gravity_aligned = true;
-  const firmware::TrackRecordingResult track =
-      firmware::track_recording(rec, track_options, stop_requested());
-
-  // The walls: given, or found in the map with gravity (world z up) as the firmware would.
-  WallModel walls;
-  nlohmann::json walls_json;
-  if (!a.walls.empty()) {
-    walls = firmware::read_walls_json(a.walls);
-    walls_json = {{"source", a.walls}};
-  } else {
-    const dsp::RoomConfig config = dsp::room_config_for_map(
-        track.keyframe_centres, Eigen::Vector3d(0.0, 0.0, -1.0), kMapThresholdM);
-    dsp::RoomEstimator estimator(std::max<std::size_t>(track.map.size(), 1));
-    const dsp::RoomResult room = estimator.estimate(track.map, config);
-    walls = room.model;
-    walls_json = firmware::to_json(room);
-    walls_json["frame"] =
-        "world: the first body pose turned so z is up (wallar track --gravity-aligned)";
+  board.display.backend = "headless";  // offline: never the panel
+  if (a.width_px > 0) board.display.width_px = a.width_px;
+  if (a.height_px > 0) board.display.height_px = a.height_px;
+  if (a.lens.size() == 2) {
+    board.display.lens_k1 = a.lens[0];
+    board.display.lens_k2 = a.lens[1];
   }
+  std::optional<WallModel> given;
+  if (!a.walls.empty()) given = firmware::read_walls_json(a.walls);
   std::error_code ec;
   fs::create_directories(a.out, ec);
   if (ec) throw_input_error(a.out, 0, "cannot create output folder: " + ec.message());
-  if (a.walls.empty()) std::ofstream(fs::path(a.out) / "walls.json") << walls_json.dump(2) << "\n";
+  if (a.realtime) {
+    // The world of the walls: gravity's when the IMU is still around the first frame.
+    SE3d T_world_body0 = SE3d::Identity();
+    if (given && !rec.cams[0].frames.empty()) {
+      T_world_body0 = firmware::gravity_alignment(rec, rec.cams[0].frames.front().t_ns)
+                          .value_or(SE3d::Identity());
+    }
+    return run_realtime(a, rec, board, given, T_world_body0);
+  }
+
+  // The whole recording through the appliance in lock step (repeatable), as `wallar track`.
+  const firmware::ApplianceReport report = firmware::run_over_recording(
+      rec, board, firmware::offline_options(firmware::ApplianceMode::kLockStep), stop_requested());
+  firmware::RunEvaluationOptions eval_options;
+  eval_options.gravity_aligned = !rec.imu.empty();
+  const firmware::RunEvaluation track = firmware::evaluate_run(rec, report, eval_options);
+
+  // The walls: given, or the appliance's reconstruction, in the same world.
+  WallModel walls;
+  if (given) {
+    walls = *given;
+  } else {
+    const dsp::RoomResult room = track.outputs.room.value_or(dsp::RoomResult{});
+    walls = room.model;
+    nlohmann::json walls_json = firmware::to_json(room);
+    walls_json["mode"] = report.room_gravity ? "2-D (gravity from the IMU)" : "3-D (no gravity)";
+    walls_json["frame"] = track.gravity_aligned
+                              ? "world: the first body pose turned so z is up (wallar track "
+                                "--gravity-aligned)"
+                              : "world: the first body pose (no IMU)";
+    std::ofstream(fs::path(a.out) / "walls.json") << walls_json.dump(2) << "\n";
+  }
 
   firmware::HeadsetViewOptions view_options = firmware::view_options(board.display);
-  view_options.display.backend = display::DisplayBackend::kHeadless;  // offline: never the panel
-  if (a.width_px > 0) view_options.display.width_px = a.width_px;
-  if (a.height_px > 0) view_options.display.height_px = a.height_px;
-  if (a.lens.size() == 2) {
-    view_options.renderer.lens_k1 = a.lens[0];
-    view_options.renderer.lens_k2 = a.lens[1];
-  }
-  if (a.realtime) {
-    if (a.every > 0) {
-      view_options.png_dir = a.out;
-      view_options.png_every = a.every;
-    }
-    return run_realtime(a, rec, board, track, walls, view_options);
-  }
   view_options.png_dir = a.out;
   view_options.png_every = std::max(1, a.every);
   const RigCalibration rig = rec.rig();
   firmware::HeadsetView view(rig, view_options);
   const double fps = rig.cams[0].rate_hz;
-  for (std::size_t i = 0; i < track.frames.size() && !stop_requested().load(); ++i) {
-    const dsp::TrackResult& r = track.frames[i];
+  for (std::size_t i = 0; i < report.trajectory.size() && !stop_requested().load(); ++i) {
+    const firmware::PoseRecord& r = report.trajectory[i];
     const StereoFrame pair = load_pair(rec, r.t_ns, i);
     display::HudState hud;
     hud.tracking = dsp::to_string(r.state);
     hud.fps = fps;
     hud.walls = static_cast<int>(walls.walls.size());
     const bool pose_valid = r.state == dsp::TrackingState::kTracking;
-    if (!view.show(pair, 0, track.poses[i].T_world_body, pose_valid, &walls, hud)) {
+    if (!view.show(pair, 0, track.outputs.poses[i].T_world_body, pose_valid, &walls, hud)) {
       std::fprintf(stderr, "wallar: error: display: %s: %s\n", view.describe().c_str(),
                    view.last_error().c_str());
       return kExitFailure;
@@ -240,8 +234,8 @@ void add_render_command(CLI::App& app, std::function<int()>& run) {
                   "write every Nth frame (default: every frame; with --realtime: none)")
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--realtime", args->realtime,
-                "replay at --rate through tracking (mapping thread) while a render thread draws "
-                "the newest frame: render time and camera-to-display latency");
+                "run the appliance at --rate with its render thread drawing the newest frame: "
+                "render time and camera-to-display latency");
   cmd->add_option("--rate", args->rate, "replay rate for --realtime (1 = real time)")
       ->check(CLI::Range(0.05, 100.0))
       ->capture_default_str();

@@ -3,7 +3,8 @@
 /// @brief `wallar run --board FILE`: the appliance on a board (firmware/appliance.hpp): every
 /// module on its thread from the board file until the replay ends, SIGINT/SIGTERM, the exit
 /// input or --duration; SIGUSR1 prints the stats table meanwhile. Prints the wall model and a
-/// summary (--stats: the table of threads and stages) and writes them under --out.
+/// summary (--stats: the table of threads and stages) and writes them under --out, in the
+/// first body pose's world (as `wallar track` writes its files).
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -14,6 +15,8 @@
 #include "wallar/drivers/recording/tum_trajectory.hpp"
 #include "wallar/firmware/appliance.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/hil/replay_plan.hpp"
+#include "wallar/firmware/offline.hpp"
 #include "wallar/firmware/report.hpp"
 
 namespace wallar::cli {
@@ -47,7 +50,7 @@ nlohmann::json latency_json(const firmware::LatencySummary& l) {
           {"mean_ms", l.mean_ms}};
 }
 
-nlohmann::json to_json(const firmware::ApplianceReport& r) {
+nlohmann::json to_json(const firmware::ApplianceReport& r, const firmware::RunOutputs& out) {
   nlohmann::json threads = nlohmann::json::array();
   for (const firmware::ThreadRow& t : r.threads) {
     threads.push_back({{"name", t.name},
@@ -73,12 +76,13 @@ nlohmann::json to_json(const firmware::ApplianceReport& r) {
   const firmware::TrackingCounters& c = r.tracking;
   nlohmann::json j = {
       {"source", r.source},
+      {"mode", firmware::to_string(r.mode)},
       {"display", r.display},
       {"stop_reason", r.stop_reason},
       {"wall_time_s", ns_to_s(r.wall_time_ns)},
       {"loops", r.loops_played},
       {"replay", firmware::to_json(r.replay)},
-      {"imu", {{"samples", r.imu_samples}, {"dropped", r.imu_dropped}}},
+      {"imu", {{"present", r.imu}, {"samples", r.imu_samples}, {"dropped", r.imu_dropped}}},
       {"frames",
        {{"in", r.frames_in}, {"overwritten", r.frames_overwritten}, {"tracked", r.frames_tracked}}},
       {"tracking",
@@ -115,9 +119,10 @@ nlohmann::json to_json(const firmware::ApplianceReport& r) {
       {"stages", stages},
       {"memory_locked", r.memory_locked},
       {"max_rss_kb", r.max_rss_kb}};
-  if (r.room) {
-    j["walls"] = firmware::to_json(*r.room);
+  if (out.room) {
+    j["walls"] = firmware::to_json(*out.room);
     j["walls"]["mode"] = r.room_gravity ? "2-D (gravity from the IMU)" : "3-D (no gravity)";
+    j["walls"]["frame"] = "world: the first body pose";
   }
   return j;
 }
@@ -134,13 +139,18 @@ int run_run_command(const RunArgs& args) {
   replay.start_offset_ns = s_to_ns(board.replay.start_offset_s);
   replay.skip = board.replay.skip;
   options.replay = args.flags.apply(replay);
-  options.loops = args.loops;
   options.max_duration_ns = s_to_ns(args.duration_s);
-  options.deterministic = args.deterministic;
+  options.mode =
+      args.deterministic ? firmware::ApplianceMode::kLockStep : firmware::ApplianceMode::kRealTime;
   options.view = !args.no_view;
   options.png_dir = fs::path(args.out) / "view";
   options.png_every = args.view_every;
-  for (const std::string& f : args.faults) options.faults.push_back(firmware::parse_fault(f));
+  // Test tooling between the replay and the pipeline (firmware/hil), only when asked for.
+  std::vector<firmware::hil::FaultSpec> faults;
+  for (const std::string& f : args.faults) faults.push_back(firmware::hil::parse_fault(f));
+  if (args.loops != 1 || !faults.empty()) {
+    options.replay_plan = firmware::hil::replay_plan(args.loops, std::move(faults));
+  }
   options.wall_method = score_method_named(args.method);
   options.seed = args.seed;
   options.realtime = !args.no_rt;
@@ -153,24 +163,19 @@ int run_run_command(const RunArgs& args) {
   const firmware::ApplianceReport report =
       firmware::run_appliance(board, options, stop_requested(), &stats_requested());
 
-  // Outputs: the wall model, the map coloured by surface, the trajectory, the summary.
-  nlohmann::json summary = to_json(report);
+  // Outputs in the first body pose's world: the wall model, the map coloured by surface, the
+  // trajectory (every frame tracking took), the summary.
+  const firmware::RunOutputs out = firmware::outputs_in_body_world(report);
+  nlohmann::json summary = to_json(report, out);
   summary["board"] = board.name;
   nlohmann::json outputs = {"run_summary.json", "trajectory.tum"};
-  {
-    std::vector<StampedPose> poses;
-    poses.reserve(report.trajectory.size());
-    for (const firmware::PoseRecord& p : report.trajectory)
-      poses.push_back({p.t_ns, p.T_world_body});
-    std::ofstream(fs::path(args.out) / "trajectory.tum") << recording::format_tum(poses);
-  }
-  if (report.room) {
+  std::ofstream(fs::path(args.out) / "trajectory.tum") << recording::format_tum(out.poses);
+  if (out.room) {
     std::ofstream(fs::path(args.out) / "walls.json") << summary["walls"].dump(2) << "\n";
     outputs.push_back("walls.json");
     if (report.map) {
-      cloud::write_ply_rgb(
-          fs::path(args.out) / "map.ply", report.map->points,
-          firmware::surface_colours(report.map->points, *report.room, options.wall_threshold_m));
+      cloud::write_ply_rgb(fs::path(args.out) / "map.ply", out.map,
+                           firmware::surface_colours(out.map, *out.room, options.wall_threshold_m));
       outputs.push_back("map.ply");
     }
   }
@@ -192,11 +197,11 @@ int run_run_command(const RunArgs& args) {
         static_cast<unsigned long long>(report.imu_dropped), report.map_points,
         report.map_keyframes, report.stop_reason.c_str(), ns_to_s(report.wall_time_ns));
     for (const std::string& e : report.events) std::printf("  event: %s\n", e.c_str());
-    if (report.room) {
-      std::printf("wall model (%s, %llu reconstructions, world = first left camera):\n",
+    if (out.room) {
+      std::printf("wall model (%s, %llu reconstructions, world = first body pose):\n",
                   report.room_gravity ? "2-D, gravity from the IMU" : "3-D, no gravity",
                   static_cast<unsigned long long>(report.reconstructions));
-      std::cout << firmware::to_text(*report.room);
+      std::cout << firmware::to_text(*out.room);
     } else {
       std::printf("wall model: none (the map has too few points)\n");
     }

@@ -1,11 +1,18 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file cmd_track.cpp
-/// @brief `wallar track RECORDING`: the stereo tracker and mapper over a recording; the
-/// trajectory in TUM format, the sparse map as PLY, and errors against the ground truth.
+/// @brief `wallar track RECORDING`: the appliance's modules over a recording (replay, tracking
+/// with the attitude filter and degraded modes, mapping, reconstruction), as fast as tracking
+/// goes; the trajectory in TUM format, the sparse map as PLY, the walls as JSON, and errors
+/// against the ground truth.
+///
+/// Modes: every frame tracked with mapping on its thread (default), or --lockstep (mapping on
+/// the tracking thread after each key-frame, walls at fixed points: repeatable; the same
+/// trajectory as `wallar run --deterministic`).
 ///
 /// Frames: poses are T_world_body of the recording's body frame (EuRoC: the IMU, through
-/// T_BS). The world is the first tracked body pose, or with --gravity-aligned that pose turned
-/// so z is up (gravity from the IMU's first still second). map.ply is in the same world frame.
+/// T_BS), one per frame tracking took (tracked, lost or rejected: the pose held). The world is
+/// the first body pose, or with --gravity-aligned that pose turned so z is up (gravity from
+/// the IMU's first still second). map.ply and walls.json are in the same world frame.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -22,7 +29,8 @@
 #include "wallar/drivers/recording/tum_trajectory.hpp"
 #include "wallar/eval/output.hpp"
 #include "wallar/firmware/board.hpp"
-#include "wallar/firmware/track_recording.hpp"
+#include "wallar/firmware/offline.hpp"
+#include "wallar/firmware/report.hpp"
 
 namespace wallar::cli {
 namespace {
@@ -31,6 +39,7 @@ struct TrackArgs {
   std::string recording;
   std::string out;
   std::string map;
+  std::string walls;
   bool eval = false;
   bool gravity_aligned = false;
   bool lockstep = false;
@@ -41,24 +50,39 @@ struct TrackArgs {
 
 int run_track(const TrackArgs& a) {
   const recording::EurocRecording rec = recording::read_euroc(a.recording);
-  firmware::TrackRecordingOptions options;
   // Capacities from the board file when given (as the firmware sizes them at start-up).
-  options.tracking = firmware::tracking_options(
-      a.board.empty() ? firmware::TrackingConfig{} : firmware::load_board(a.board).tracking);
-  if (a.lockstep) options.tracking.mapping_thread = false;
-  options.tracking.use_gyro = !a.no_gyro;
-  options.gravity_aligned = a.gravity_aligned;
-  options.evaluate = a.eval;
-  const firmware::TrackRecordingResult r =
-      firmware::track_recording(rec, options, stop_requested());
-  if (!a.out.empty()) eval::write_file_atomically(a.out, recording::format_tum(r.poses));
-  if (!a.map.empty()) cloud::write_ply_map(a.map, r.map, r.sigma_m);
+  const firmware::BoardConfig board =
+      a.board.empty() ? firmware::BoardConfig{} : firmware::load_board(a.board);
+  firmware::RunEvaluationOptions eval_options;
+  eval_options.gravity_aligned = a.gravity_aligned;
+  eval_options.ground_truth = a.eval;
+  firmware::check_evaluation_inputs(rec, eval_options);
+  if (a.gravity_aligned && rec.imu.empty()) {
+    throw InputError(rec.mav0.string() + ": --gravity-aligned needs an IMU (imu0 has no samples)");
+  }
+  firmware::ApplianceOptions options = firmware::offline_options(
+      a.lockstep ? firmware::ApplianceMode::kLockStep : firmware::ApplianceMode::kEveryFrame);
+  options.use_gyro = !a.no_gyro;
+  const firmware::ApplianceReport report =
+      firmware::run_over_recording(rec, board, options, stop_requested());
+  const firmware::RunEvaluation r = firmware::evaluate_run(rec, report, eval_options);
+  const firmware::RunOutputs& o = r.outputs;
+  const char* world = a.gravity_aligned ? "world: the first body pose turned so z is up"
+                                        : "world: the first body pose";
+  if (!a.out.empty()) eval::write_file_atomically(a.out, recording::format_tum(o.poses));
+  if (!a.map.empty()) cloud::write_ply_map(a.map, o.map, o.sigma_m);
+  if (!a.walls.empty()) {
+    nlohmann::json walls = firmware::to_json(o.room ? *o.room : dsp::RoomResult{});
+    walls["mode"] = report.room_gravity ? "2-D (gravity from the IMU)" : "3-D (no gravity)";
+    walls["frame"] = world;
+    eval::write_file_atomically(a.walls, walls.dump(2) + "\n");
+  }
 
-  const firmware::TrackingCounters& c = r.counters;
+  const firmware::TrackingCounters& c = report.tracking;
   std::vector<std::int64_t> total, rectify, pyramid, stage1, stage2, keyframe;
   int tracking = 0;
-  for (const dsp::TrackResult& f : r.frames) {
-    tracking += f.state == dsp::TrackingState::kTracking ? 1 : 0;
+  for (const firmware::PoseRecord& f : report.trajectory) {
+    tracking += f.state == dsp::TrackingState::kTracking && f.rejected == nullptr ? 1 : 0;
     total.push_back(f.times.total_ns);
     rectify.push_back(f.times.rectify_ns);
     pyramid.push_back(f.times.pyramid_ns);
@@ -66,33 +90,48 @@ int run_track(const TrackArgs& a) {
     stage2.push_back(f.times.stage2_ns);
     keyframe.push_back(f.times.keyframe_ns);
   }
-  nlohmann::json j = {
-      {"recording", a.recording},
-      {"frames", r.frames.size()},
-      {"tracking_frames", tracking},
-      {"lost_frames", c.lost_frames},
-      {"rejected_frames", c.rejected_frames},
-      {"relocalisations", c.relocalisations},
-      {"keyframes", c.keyframes},
-      {"keyframes_deferred", c.keyframes_deferred},
-      {"new_segments", c.new_segments},
-      {"map_full_keyframes", c.map_full_keyframes},
-      {"culled_keyframes", c.culled_keyframes},
-      {"stale_updates", c.stale_updates},
-      {"map_points", r.map.size()},
-      {"local_adjustments", c.local_adjustments},
-      {"global_adjustments", c.global_adjustments},
-      {"culled_points", c.culled_points},
-      {"mapping", options.tracking.mapping_thread ? "thread" : "lockstep"},
-      {"final_state", dsp::to_string(r.frames.back().state)},
-      {"frame_time", to_json(percentiles(total))},
-      {"stage_time",
-       {{"rectify", to_json(percentiles(rectify))},
-        {"pyramid", to_json(percentiles(pyramid))},
-        {"stage1_track", to_json(percentiles(stage1))},
-        {"stage2_refind", to_json(percentiles(stage2))},
-        {"keyframe", to_json(percentiles(keyframe))}}},
-      {"mapping_time_per_keyframe", to_json(percentiles(r.mapping_times_ns))}};
+  const firmware::DegradedCounters& d = report.degraded;
+  nlohmann::json j = {{"recording", a.recording},
+                      {"mode", firmware::to_string(report.mode)},
+                      {"imu", report.imu},
+                      {"frames", report.trajectory.size()},
+                      {"tracking_frames", tracking},
+                      {"lost_frames", c.lost_frames},
+                      {"rejected_frames", c.rejected_frames},
+                      {"relocalisations", c.relocalisations},
+                      {"keyframes", c.keyframes},
+                      {"keyframes_deferred", c.keyframes_deferred},
+                      {"new_segments", c.new_segments},
+                      {"map_full_keyframes", c.map_full_keyframes},
+                      {"culled_keyframes", c.culled_keyframes},
+                      {"map_keyframes", c.map_keyframes},
+                      {"stale_updates", c.stale_updates},
+                      {"map_points", o.map.size()},
+                      {"local_adjustments", c.local_adjustments},
+                      {"global_adjustments", c.global_adjustments},
+                      {"culled_points", c.culled_points},
+                      {"mapping", options.mode == firmware::ApplianceMode::kLockStep ||
+                                          !board.tracking.mapping_thread
+                                      ? "lockstep"
+                                      : "thread"},
+                      {"final_state", dsp::to_string(report.trajectory.back().state)},
+                      {"surfaces", o.room ? o.room->model.walls.size() : 0},
+                      {"reconstructions", report.reconstructions},
+                      {"degraded",
+                       {{"camera_lost", d.camera_lost},
+                        {"camera_recovered", d.camera_recovered},
+                        {"imu_lost", d.imu_lost},
+                        {"imu_recovered", d.imu_recovered},
+                        {"imu_only_poses", d.imu_only_poses}}},
+                      {"events", report.events},
+                      {"frame_time", to_json(percentiles(total))},
+                      {"stage_time",
+                       {{"rectify", to_json(percentiles(rectify))},
+                        {"pyramid", to_json(percentiles(pyramid))},
+                        {"stage1_track", to_json(percentiles(stage1))},
+                        {"stage2_refind", to_json(percentiles(stage2))},
+                        {"keyframe", to_json(percentiles(keyframe))}}},
+                      {"mapping_time_per_keyframe", to_json(percentiles(report.mapping_times_ns))}};
   if (r.errors) {
     const dsp::TrajectoryErrors& e = *r.errors;
     j["ate_rmse_m"] = e.ate_rmse_m;
@@ -118,11 +157,15 @@ int run_track(const TrackArgs& a) {
   if (a.json) {
     std::cout << j.dump(2) << "\n";
   } else {
-    std::printf("wallar track: %zu frames, %d tracking, %llu lost, %llu rejected; %llu key-frames, "
-                "%zu map points\n",
-                r.frames.size(), tracking, static_cast<unsigned long long>(c.lost_frames),
-                static_cast<unsigned long long>(c.rejected_frames),
-                static_cast<unsigned long long>(c.keyframes), r.map.size());
+    std::printf(
+        "wallar track: %zu frames, %d tracking, %llu lost, %llu rejected; %llu key-frames, "
+        "%zu map points, %zu surfaces (%s%s)\n",
+        report.trajectory.size(), tracking, static_cast<unsigned long long>(c.lost_frames),
+        static_cast<unsigned long long>(c.rejected_frames),
+        static_cast<unsigned long long>(c.keyframes), o.map.size(),
+        o.room ? o.room->model.walls.size() : std::size_t{0}, firmware::to_string(report.mode),
+        report.imu ? "" : ", vision only: no IMU");
+    for (const std::string& e : report.events) std::printf("  event: %s\n", e.c_str());
     const Percentiles p = percentiles(total);
     std::printf("  frame time: mean %.2f ms, p50 %.2f, p99 %.2f, max %.2f\n", p.mean_ms, p.p50_ms,
                 p.p99_ms, p.max_ms);
@@ -144,8 +187,9 @@ int run_track(const TrackArgs& a) {
       }
       std::printf("\n");
     }
-    if (!a.out.empty()) std::printf("  wrote %s\n", a.out.c_str());
-    if (!a.map.empty()) std::printf("  wrote %s\n", a.map.c_str());
+    for (const std::string* f : {&a.out, &a.map, &a.walls}) {
+      if (!f->empty()) std::printf("  wrote %s\n", f->c_str());
+    }
   }
   return stop_requested().load() ? kExitInterrupted : kExitOk;
 }
@@ -155,17 +199,23 @@ int run_track(const TrackArgs& a) {
 void add_track_command(CLI::App& app, std::function<int()>& run) {
   auto args = std::make_shared<TrackArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "track", "Track the stereo camera through a recording and map it (TUM trajectory, PLY map)");
+      "track",
+      "Run the appliance's tracking, mapping and reconstruction over a recording (TUM trajectory, "
+      "PLY map, walls JSON)");
   cmd->add_option("recording", args->recording, "EuRoC-layout recording (ROOT or ROOT/mav0)")
       ->required();
   cmd->add_option("--out", args->out,
                   "trajectory file, TUM format: t x y z qx qy qz qw (t in s), T_world_body");
   cmd->add_option("--map", args->map, "sparse map as PLY (x y z sigma observations), world frame");
-  cmd->add_flag("--eval", args->eval, "compare with the recording's ground truth (ATE, RPE, drift)");
+  cmd->add_option("--walls", args->walls,
+                  "the reconstruction's final surfaces (wallar walls JSON schema), world frame");
+  cmd->add_flag("--eval", args->eval,
+                "compare with the recording's ground truth (ATE, RPE, drift)");
   cmd->add_flag("--gravity-aligned", args->gravity_aligned,
                 "turn the world so z is up (gravity from the IMU's first second)");
   cmd->add_flag("--lockstep", args->lockstep,
-                "map on the tracking thread after each key-frame (repeatable results)");
+                "map on the tracking thread after each key-frame, walls at fixed points "
+                "(repeatable: the trajectory of wallar run --deterministic)");
   cmd->add_flag("--no-gyro", args->no_gyro, "do not use the gyro to predict rotation");
   cmd->add_option("--board", args->board,
                   "board file whose tracking: section sizes the tracker (default: built-in sizes)");

@@ -120,13 +120,15 @@ struct RtThread::State {
   int priority = 0;
   // Written by the thread before `failed` / `finished`:
   std::string error;
+  std::exception_ptr exception;
   std::int64_t final_cpu_ns = 0;
 
   std::atomic<bool> started{false};
   std::atomic<bool> failed{false};
   std::atomic<bool> finished{false};
 
-  void fail(const char* what) noexcept {
+  void fail(const char* what, std::exception_ptr e) noexcept {
+    exception = std::move(e);
     try {
       error = what;
     } catch (...) {  // no memory for the message: failed() still says so
@@ -268,9 +270,9 @@ void* RtThread::entry(void* arg) {
     state->finish();
     throw;
   } catch (const std::exception& e) {
-    state->fail(e.what());
+    state->fail(e.what(), std::current_exception());
   } catch (...) {
-    state->fail("unknown exception");
+    state->fail("unknown exception", std::current_exception());
   }
   state->body = nullptr;  // release what the body captured, here on its own thread
   state->finish();
@@ -336,6 +338,10 @@ bool RtThread::failed() const {
 }
 
 std::string RtThread::error() const { return failed() ? state_->error : std::string(); }
+
+std::exception_ptr RtThread::exception() const {
+  return failed() ? state_->exception : std::exception_ptr();
+}
 
 MemoryLock lock_memory() {
   MemoryLock result;

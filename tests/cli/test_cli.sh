@@ -260,8 +260,29 @@ eval_bad_input)
   [ -e "$tmp/a" ] && fail "a rejected eval all left $tmp/a behind"
   ;;
 eval_real)
-  # The room of the bundled EuRoC cut, its figure, table and summary.
-  run eval real --recording "$rec" --out "$tmp/ev" --json; expect_rc 0
+  # The room of the bundled EuRoC cut in the appliance's map (the default: lock step over the
+  # whole recording), its figure, table and summary.
+  run eval real --recording "$rec" --out "$tmp/ap" --json; expect_rc 0
+  for f in real_overlay.png real_map.csv real_summary.json; do
+    [ -s "$tmp/ap/$f" ] || fail "no $f (appliance map)"
+  done
+  python3 - "$tmp/ap" "$tmp/out" <<'PY' || fail "eval real outputs (appliance map)"
+import json, sys
+ev, out = sys.argv[1], sys.argv[2]
+d = json.load(open(out))
+assert d == json.load(open(f'{ev}/real_summary.json')), 'stdout and real_summary.json differ'
+assert d['map_source'] == 'appliance' and d['pairs_requested'] is None, d
+assert d['pairs_used'] == 40 and d['points'] > 150, (d['pairs_used'], d['points'])
+floors = [s for s in d['surfaces'] if s['kind'] == 'floor']
+assert len(floors) == 1, d['surfaces']
+f = d['floor']
+assert 0.5 < f['distance_below_camera_m'] < 1.5, f
+assert f['free_fit_vs_ground_truth_gravity_deg'] < 2.0, f
+rows = open(f'{ev}/real_map.csv').read().splitlines()
+assert len(rows) == d['points'] + 1, (len(rows), d['points'])
+PY
+  # The study's own sparse map from ORB matches of 8 stereo pairs (--map-source orb).
+  run eval real --recording "$rec" --out "$tmp/ev" --map-source orb --json; expect_rc 0
   for f in real_overlay.png real_map.csv real_summary.json; do
     [ -s "$tmp/ev/$f" ] || fail "no $f"
   done
@@ -271,6 +292,7 @@ import json, struct, sys, zlib
 ev, out = sys.argv[1], sys.argv[2]
 d = json.load(open(out))
 assert d == json.load(open(f'{ev}/real_summary.json')), 'stdout and real_summary.json differ'
+assert d['map_source'] == 'orb', d['map_source']
 assert d['ground_truth'] is True and d['pairs_used'] == 8, d
 assert d['points'] > 2000, d['points']
 floors = [s for s in d['surfaces'] if s['kind'] == 'floor']
@@ -315,7 +337,7 @@ for y in range(h):
     prev = line
 assert red > 2000, f'{red} floor-coloured pixels'
 PY
-  run eval real --recording "$rec" --out "$tmp/ev2" --pairs 2; expect_rc 0
+  run eval real --recording "$rec" --out "$tmp/ev2" --map-source orb --pairs 2; expect_rc 0
   expect_out "from 2 of 40 stereo pairs"; expect_out "deg from ground-truth gravity"
   [ -s "$tmp/ev2/real_summary.json" ] || fail "no real_summary.json with --pairs 2"
   ;;
@@ -323,9 +345,12 @@ eval_real_bad_input)
   run eval real --recording "$tmp/nope" --out "$tmp/ev"; expect_rc 2; one_err_line
   expect_err "$tmp/nope: no such recording folder"
   [ -e "$tmp/ev/real_summary.json" ] && fail "real_summary.json left behind (missing recording)"
-  run eval real --recording "$rec" --out "$tmp/ev" --pairs 41; expect_rc 2; one_err_line
-  expect_err "cam0/data.csv: has 40 stereo pairs, the study asks for 41"
+  run eval real --recording "$rec" --out "$tmp/ev" --map-source orb --pairs 41; expect_rc 2
+  one_err_line; expect_err "cam0/data.csv: has 40 stereo pairs, the study asks for 41"
   [ -e "$tmp/ev/real_summary.json" ] && fail "real_summary.json left behind (too few pairs)"
+  run eval real --recording "$rec" --out "$tmp/ev" --pairs 4; expect_rc 2; one_err_line
+  expect_err "--pairs chooses the stereo pairs of --map-source orb"
+  run eval real --recording "$rec" --out "$tmp/ev" --map-source tsdf; expect_rc 2
   run eval real --out "$tmp/ev"; expect_rc 2; expect_err "recording"
   mkdir -p "$tmp/r"; cp -r "$rec/mav0" "$tmp/r/"; chmod -R u+w "$tmp/r"
   first=$(sed -n 2p "$tmp/r/mav0/cam0/data.csv" | cut -d, -f2 | tr -d '\r')
@@ -337,11 +362,11 @@ eval_real_bad_input)
   # Without ground truth the study runs and says so.
   cp "$rec/mav0/cam0/data/$first" "$tmp/r/mav0/cam0/data/$first"
   rm -r "$tmp/r/mav0/state_groundtruth_estimate0"
-  run eval real --recording "$tmp/r" --out "$tmp/ev" --pairs 2 --json; expect_rc 0
+  run eval real --recording "$tmp/r" --out "$tmp/ev" --map-source orb --pairs 2 --json; expect_rc 0
   [ "$(json "d['ground_truth']")" = False ] || fail "ground truth reported"
   [ "$(json "d['imu_gravity_vs_ground_truth_deg']")" = None ] || fail "IMU vs ground truth"
   [ "$(json "d['floor']['free_fit_vs_ground_truth_gravity_deg']")" = None ] || fail "floor vs truth"
-  run eval real --recording "$tmp/r" --out "$tmp/ev" --pairs 2; expect_rc 0
+  run eval real --recording "$tmp/r" --out "$tmp/ev" --map-source orb --pairs 2; expect_rc 0
   expect_out "no ground truth in this recording"
   ;;
 eval_marker)
@@ -512,10 +537,14 @@ calibrate_imu_cam)
   expect_err "no such recording folder"
   ;;
 track)
-  run track "$rec" --out "$tmp/traj.txt" --map "$tmp/map.ply" --eval --gravity-aligned --json
+  run track "$rec" --out "$tmp/traj.txt" --map "$tmp/map.ply" --walls "$tmp/walls.json" --eval \
+      --gravity-aligned --json
   expect_rc 0
   [ "$(json "d['frames']")" = 40 ] || fail "frames"
   [ "$(json "d['tracking_frames']")" = 40 ] || fail "tracking frames"
+  [ "$(json "d['imu'], d['mode'], d['mapping']")" = "True every frame thread" ] || fail "mode: $(cat "$tmp/out")"
+  [ "$(json "d['events'], d['degraded']['camera_lost'] + d['degraded']['imu_lost']")" = "[] 0" ] || fail "degraded"
+  python3 -c "import json,sys; d=json.load(open('$tmp/out')); s=d['stage_time']; sys.exit(0 if d['frame_time']['p50_ms'] > 0 and s['stage1_track']['p50_ms'] > 0 and s['rectify']['max_ms'] > 0 else 1)" || fail "stage times: $(cat "$tmp/out")"
   python3 -c "import json,sys; d=json.load(open('$tmp/out')); sys.exit(0 if d['drift_m'] < 0.01 and d['drift_deg'] < 0.5 and d['floor']['free_fit_vs_ground_truth_gravity_deg'] < 2.0 else 1)" || fail "accuracy: $(cat "$tmp/out")"
   # TUM: t x y z qx qy qz qw, one line per frame, the first pose the world's origin.
   [ "$(grep -vc '^#' "$tmp/traj.txt")" = 40 ] || fail "trajectory lines"
@@ -523,12 +552,68 @@ track)
   # The map reads back, with its observation counts, and holds the floor 0.93 m down.
   run walls "$tmp/map.ply" --gravity 0,0,-1 --json -; expect_rc 0
   python3 -c "import json,sys; d=json.load(open('$tmp/out')); f=[w for w in d['surfaces'] if w['kind']=='floor']; sys.exit(0 if f and abs(f[0]['d'] + 0.93) < 0.1 else 1)" || fail "floor in the map: $(cat "$tmp/out")"
+  # The reconstruction's final surfaces (the wallar walls schema, the same world): a floor
+  # 0.93 m below the first body pose facing up, and they read back as a wall model.
+  python3 - "$tmp/walls.json" <<'PY' || fail "walls.json: $(cat "$tmp/walls.json")"
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d['mode'].startswith('2-D') and 'z is up' in d['frame'], (d['mode'], d['frame'])
+floors = [s for s in d['surfaces'] if s['kind'] == 'floor']
+assert len(floors) == 1, d['surfaces']
+f = floors[0]
+assert f['normal'][2] > 0.99 and abs(f['d'] + 0.93) < 0.1 and f['inliers'] > 100, f
+for s in d['surfaces']:
+    assert len(s['extent']) >= 3 and abs(sum(n * n for n in s['normal']) - 1) < 1e-9, s
+PY
+  run render "$rec" --out "$tmp/v" --walls "$tmp/walls.json" --every 40 --json; expect_rc 0
   # A recording of one stereo pair makes a map.
   cp -r "$rec" "$tmp/one"
   for c in cam0 cam1; do head -n 2 "$rec/mav0/$c/data.csv" >"$tmp/one/mav0/$c/data.csv"; done
   run track "$tmp/one" --lockstep --map "$tmp/one.ply" --json; expect_rc 0
   [ "$(json "d['frames']")" = 1 ] || fail "one pair: frames"
   python3 -c "import json,sys; sys.exit(0 if json.load(open('$tmp/out'))['map_points'] > 100 else 1)" || fail "one pair: map"
+  ;;
+track_run_same)
+  # One pipeline: `wallar track --lockstep` and `wallar run --deterministic` (the sim board
+  # replays the same recording) write the same trajectory, byte for byte, and the same walls.
+  run track "$rec" --lockstep --out "$tmp/track.tum" --walls "$tmp/track_walls.json" --json
+  expect_rc 0; [ "$(json "d['mode']")" = "lock step" ] || fail "mode"
+  run run --board "$src/board/sim.yaml" --out "$tmp/o" --deterministic --fast --no-view --json
+  expect_rc 0
+  [ "$(grep -c . "$tmp/track.tum")" = 40 ] || fail "track.tum lines"
+  cmp "$tmp/track.tum" "$tmp/o/trajectory.tum" || fail "trajectories differ: $(diff "$tmp/track.tum" "$tmp/o/trajectory.tum" | head -4)"
+  python3 - "$tmp/track_walls.json" "$tmp/o/walls.json" <<'PY' || fail "walls differ"
+import json, sys
+a, b = (json.load(open(p)) for p in sys.argv[1:3])
+key = lambda d: [(s['id'], s['kind'], s['normal'], s['d'], s['inliers']) for s in d['surfaces']]
+assert key(a) == key(b) and len(a['surfaces']) >= 2, (key(a), key(b))
+PY
+  ;;
+track_no_imu)
+  # Vision-only recordings: no imu0 folder at all, or an imu0/data.csv with its header only.
+  # Accepted by track, run and render with nothing on stderr; no IMU is not a lost IMU.
+  mkdir -p "$tmp/noimu/mav0"
+  for d in cam0 cam1 state_groundtruth_estimate0; do cp -r "$rec/mav0/$d" "$tmp/noimu/mav0/"; done
+  cp "$rec/mav0/body.yaml" "$tmp/noimu/mav0/" 2>/dev/null
+  cp -r "$tmp/noimu" "$tmp/header"; cp -r "$rec/mav0/imu0" "$tmp/header/mav0/"; chmod -R u+w "$tmp/header"
+  head -n 1 "$rec/mav0/imu0/data.csv" >"$tmp/header/mav0/imu0/data.csv"
+  for r in noimu header; do
+    run track "$tmp/$r" --lockstep --eval --walls "$tmp/$r.json" --json; expect_rc 0
+    [ -s "$tmp/err" ] && fail "$r: stderr: $(cat "$tmp/err")"
+    [ "$(json "d['imu'], d['frames'], d['tracking_frames'], d['events']")" = "False 40 40 []" ] || fail "$r: $(cat "$tmp/out")"
+    [ "$(json "d['degraded']['imu_lost'], d['degraded']['camera_lost'], 'floor' in d")" = "0 0 False" ] || fail "$r: degraded"
+    python3 -c "import json,sys; d=json.load(open('$tmp/out')); sys.exit(0 if d['drift_m'] < 0.01 else 1)" || fail "$r: drift"
+    python3 -c "import json,sys; d=json.load(open('$tmp/$r.json')); sys.exit(0 if d['mode'].startswith('3-D') and d['surfaces'] else 1)" || fail "$r: walls"
+  done
+  run track "$tmp/noimu" --gravity-aligned; expect_rc 2; one_err_line; expect_err "--gravity-aligned needs an IMU"
+  printf 'board: {name: vision}\nsource: replay\nreplay: {recording: %s, rate: 0}\n' "$tmp/noimu" >"$tmp/vision.yaml"
+  run run --board "$tmp/vision.yaml" --out "$tmp/o" --deterministic --no-view --json; expect_rc 0
+  [ "$(json "d['imu']['present'], d['imu']['samples'], d['degraded']['imu_lost'], d['events']")" = "False 0 0 []" ] || fail "run: $(cat "$tmp/out")"
+  [ "$(json "d['walls']['mode']")" = "3-D (no gravity)" ] || fail "run: walls mode"
+  grep -v "^wallar: board vision" "$tmp/err" | grep -q . && fail "run: stderr: $(cat "$tmp/err")"
+  run render "$tmp/noimu" --out "$tmp/view" --every 40 --width 320 --height 120 --json; expect_rc 0
+  [ -s "$tmp/err" ] && fail "render: stderr: $(cat "$tmp/err")"
+  python3 -c "import json,sys; d=json.load(open('$tmp/view/walls.json')); sys.exit(0 if 'no IMU' in d['frame'] else 1)" || fail "render: frame"
   ;;
 track_bad_input)
   run track "$tmp/nowhere"; expect_rc 2; one_err_line
@@ -554,13 +639,17 @@ render)
   run render "$rec" --out "$tmp/again" --walls "$tmp/view/walls.json" --every 40 --json; expect_rc 0
   [ "$(json "d['walls']")" = "$(python3 -c "import json; print(len(json.load(open('$tmp/view/walls.json'))['surfaces']))")" ] || fail "walls given"
   [ "$(json "d['written']")" = 1 ] || fail "written with --walls"
-  # Real time (4x here): tracking on the replay thread, the renderer on its own drawing the
-  # newest frame; every posted frame is drawn or counted as skipped, latencies are measured.
+  # Real time (4x here): the appliance with its render thread drawing the newest frame; every
+  # delivered frame is tracked and posted or overwritten (counted), every posted frame drawn or
+  # skipped, latencies are measured.
   run render "$rec" --out "$tmp/rt" --walls "$tmp/view/walls.json" --realtime --rate 4 --json
   expect_rc 0
-  [ "$(json "d['posted']")" = 40 ] || fail "posted"
-  [ "$(json "d['drawn'] + d['skipped']")" = 40 ] || fail "drawn + skipped"
+  [ "$(json "d['frames_in'], d['posted'] + d['frames_overwritten'], d['walls_source']")" = "40 40 given" ] || fail "posted: $(cat "$tmp/out")"
+  [ "$(json "d['drawn'] + d['skipped'] == d['posted'] > 0")" = True ] || fail "drawn + skipped"
   python3 -c "import json,sys; d=json.load(open('$tmp/out')); l=d['camera_to_display_latency']; sys.exit(0 if 0 < l['p50_ms'] <= l['max_ms'] and d['tracking_time']['p50_ms'] > 0 else 1)" || fail "latency: $(cat "$tmp/out")"
+  # Without --walls the view draws the reconstruction's walls as they come.
+  run render "$rec" --out "$tmp/rt2" --realtime --rate 4 --json; expect_rc 0
+  [ "$(json "d['walls_source'], d['walls'] >= 1")" = "reconstruction True" ] || fail "live walls: $(cat "$tmp/out")"
   ;;
 render_bad_input)
   run render "$tmp/nowhere" --out "$tmp/o"; expect_rc 2; one_err_line

@@ -3,7 +3,8 @@
 /// @brief Hardware-in-the-loop tests of the whole appliance on board/sim.yaml, replaying the
 /// bundled real recording (EuRoC V1_01 cut, 2 s, 40 stereo pairs, 200 Hz IMU): at real time
 /// with no deadline misses and no IMU drops, as fast as possible and bit-for-bit repeatable,
-/// with faults injected mid-run, and a 10-minute soak with flat memory.
+/// with faults injected mid-run, vision only, the offline commands' path against `wallar run`'s,
+/// and a 10-minute soak with flat memory.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -13,9 +14,13 @@
 #include "test_support.hpp"
 #include "wallar/firmware/appliance.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/hil/replay_plan.hpp"
+#include "wallar/firmware/offline.hpp"
 
 namespace wallar::firmware {
 namespace {
+
+namespace fs = std::filesystem;
 
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
 constexpr bool kSanitized = true;
@@ -96,7 +101,7 @@ TEST(ApplianceHil, FastDeterministicReplayIsBitIdenticalAcrossRuns) {
   const BoardConfig board = sim_board();
   ApplianceOptions o = quiet_options();
   o.replay.rate = 0.0;
-  o.deterministic = true;
+  o.mode = ApplianceMode::kLockStep;
   o.seed = 7;
   const std::atomic<bool> stop{false};
   const ApplianceReport a = run_appliance(board, o, stop);
@@ -136,9 +141,10 @@ TEST(ApplianceHil, RecoversFromInjectedFaults) {
   const BoardConfig board = sim_board();
   ApplianceOptions o = quiet_options();
   o.replay.rate = 0.0;
-  o.deterministic = true;
-  o.faults = {parse_fault("corrupt-frame@0.3"), parse_fault("camera-stall@1.0+0.5"),
-              parse_fault("imu-unplug@1.6+0.25")};
+  o.mode = ApplianceMode::kLockStep;
+  o.replay_plan = hil::replay_plan(
+      1, {hil::parse_fault("corrupt-frame@0.3"), hil::parse_fault("camera-stall@1.0+0.5"),
+          hil::parse_fault("imu-unplug@1.6+0.25")});
   const std::atomic<bool> stop{false};
   const ApplianceReport r = run_appliance(board, o, stop);
 
@@ -162,7 +168,80 @@ TEST(ApplianceHil, RecoversFromInjectedFaults) {
   EXPECT_EQ(count_kind(*r.room, SurfaceKind::kFloor), 1u);
 }
 
+// One pipeline: the offline commands' run over a recording (`wallar track --lockstep`: a
+// replay board made from the path, built-in tracker sizes) and the sim board's deterministic
+// run (`wallar run --deterministic`) give the same poses, bit for bit, and the same walls.
+TEST(ApplianceHil, OfflineRunOverTheRecordingIsTheSimBoardsDeterministicRun) {
+  const recording::EurocRecording rec = recording::read_euroc(test::bundled_recording());
+  const std::atomic<bool> stop{false};
+  const ApplianceReport offline =
+      run_over_recording(rec, BoardConfig{}, offline_options(ApplianceMode::kLockStep), stop);
+  ApplianceOptions o = quiet_options();
+  o.replay.rate = 0.0;
+  o.mode = ApplianceMode::kLockStep;
+  const ApplianceReport run = run_appliance(sim_board(), o, stop);
+
+  ASSERT_EQ(offline.trajectory.size(), 40u);
+  ASSERT_EQ(run.trajectory.size(), offline.trajectory.size());
+  for (std::size_t i = 0; i < run.trajectory.size(); ++i) {
+    ASSERT_EQ(run.trajectory[i].t_ns, offline.trajectory[i].t_ns);
+    ASSERT_EQ(std::memcmp(run.trajectory[i].T_world_body.matrix().data(),
+                          offline.trajectory[i].T_world_body.matrix().data(), sizeof(double) * 16),
+              0)
+        << "pose " << i;
+  }
+  EXPECT_EQ(std::memcmp(run.T_body_rect.matrix().data(), offline.T_body_rect.matrix().data(),
+                        sizeof(double) * 16),
+            0);
+  ASSERT_TRUE(run.room && offline.room);
+  ASSERT_EQ(run.room->model.walls.size(), offline.room->model.walls.size());
+  for (std::size_t i = 0; i < run.room->model.walls.size(); ++i) {
+    EXPECT_EQ(run.room->model.walls[i].plane.d, offline.room->model.walls[i].plane.d);
+    EXPECT_EQ(run.room->model.walls[i].inliers, offline.room->model.walls[i].inliers);
+  }
+  EXPECT_EQ(run.map_points, offline.map_points);
+  // Every record carries the tracker's stage times (wallar track's stage_time).
+  for (const PoseRecord& r : offline.trajectory) {
+    EXPECT_GT(r.times.total_ns, 0);
+    EXPECT_GE(r.times.total_ns, r.times.stage1_ns);
+  }
+}
+
+// Vision only: the bundled recording without imu0. No IMU ever seen is not a lost IMU: no
+// event, no counter; the walls are searched in 3-D; every frame tracked without the gyro.
+TEST(ApplianceHil, AVisionOnlyRecordingRunsWithoutDegradedModes) {
+  const test::TempDir tmp;
+  const fs::path from = test::bundled_recording() / "mav0";
+  fs::create_directories(tmp.path() / "mav0");
+  for (const char* sub : {"cam0", "cam1", "state_groundtruth_estimate0"}) {
+    fs::copy(from / sub, tmp.path() / "mav0" / sub, fs::copy_options::recursive);
+  }
+  BoardConfig board = sim_board();
+  board.replay.recording = tmp.path();
+  ApplianceOptions o = quiet_options();
+  o.view = false;
+  o.replay.rate = 0.0;
+  o.mode = ApplianceMode::kLockStep;
+  const std::atomic<bool> stop{false};
+  const ApplianceReport r = run_appliance(board, o, stop);
+
+  EXPECT_FALSE(r.imu);
+  EXPECT_EQ(r.imu_samples, 0u);
+  EXPECT_EQ(r.degraded.imu_lost + r.degraded.camera_lost + r.degraded.imu_only_poses, 0u);
+  EXPECT_TRUE(r.events.empty()) << testing::PrintToString(r.events);
+  EXPECT_EQ(r.frames_tracked, 40u);
+  ASSERT_EQ(r.trajectory.size(), 40u);
+  EXPECT_EQ(r.trajectory.back().state, dsp::TrackingState::kTracking);
+  EXPECT_LT((r.trajectory.back().T_world_body.translation() -
+             r.trajectory.front().T_world_body.translation())
+                .norm(),
+            0.01);
+  ASSERT_TRUE(r.room.has_value());
+  EXPECT_FALSE(r.room_gravity);  // no gravity: the 3-D search
+}
+
 TEST(ApplianceHil, FaultSpecsParseAndBadOnesNameThemselves) {
+  using hil::FaultSpec, hil::parse_fault, hil::to_string;
   const FaultSpec f = parse_fault("camera-stall@1.5+0.25");
   EXPECT_EQ(f.kind, FaultSpec::Kind::kCameraStall);
   EXPECT_DOUBLE_EQ(f.at_s, 1.5);
@@ -192,7 +271,7 @@ TEST(ApplianceSoak, TenMinutesOfLoopedReplayKeepMemoryFlat) {
   board.display.height_px = 360;
   ApplianceOptions o = quiet_options();
   o.replay.rate = 0.0;
-  o.loops = 300;  // 300 x 2.0 s = 10 min of sensor time
+  o.replay_plan = hil::replay_plan(300, {});  // 300 x 2.0 s = 10 min of sensor time
   o.rss_sample_period_ns = 500 * kNsPerMs;
   const std::atomic<bool> stop{false};
   const ApplianceReport r = run_appliance(board, o, stop);

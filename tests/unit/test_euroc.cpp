@@ -125,6 +125,26 @@ TEST_F(EurocBadInput, MissingCameraFolder) {
   EXPECT_THAT(error(), HasSubstr("mav0/cam1: missing folder"));
 }
 
+// Vision-only recordings are first-class: no imu0 folder, or a data.csv of its header only
+// (without sensor.yaml), read as no samples and an identity T_BS; samples without their
+// sensor.yaml stay an error.
+TEST_F(EurocBadInput, AnImuFolderIsOptional) {
+  const fs::path imu0 = mav0() / "imu0";
+  const std::string header =
+      slurp(imu0 / "data.csv").substr(0, slurp(imu0 / "data.csv").find('\n') + 1);
+  fs::remove(imu0 / "sensor.yaml");
+  EXPECT_THAT(error(), HasSubstr("imu0/sensor.yaml"));
+  spit(imu0 / "data.csv", header);
+  EurocRecording rec = read_euroc(tmp_.path());
+  EXPECT_TRUE(rec.imu.empty());
+  EXPECT_TRUE(rec.imu_calib.T_body_imu.isApprox(SE3d::Identity()));
+  EXPECT_EQ(rec.cams[0].frames.size(), 4u);
+  fs::remove_all(imu0);
+  rec = read_euroc(tmp_.path());
+  EXPECT_TRUE(rec.imu.empty());
+  EXPECT_EQ(rec.cams[1].frames.size(), 4u);
+}
+
 TEST_F(EurocBadInput, MissingCsvFile) {
   fs::remove(mav0() / "imu0" / "data.csv");
   EXPECT_THAT(error(), HasSubstr("imu0/data.csv: no such file"));

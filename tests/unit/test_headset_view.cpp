@@ -14,8 +14,8 @@
 #include "wallar/dsp/walls/room.hpp"
 #include "wallar/firmware/headset_view.hpp"
 #include "wallar/firmware/live_view.hpp"
+#include "wallar/firmware/offline.hpp"
 #include "wallar/firmware/report.hpp"
-#include "wallar/firmware/track_recording.hpp"
 
 namespace wallar::test {
 namespace {
@@ -52,21 +52,22 @@ TEST(WallsJson, RoundTripsTheWallsSchema) {
   }
 }
 
-// The bundled EuRoC cut: tracked, its map's floor found, drawn on llvmpipe. The floor overlay
+// The bundled EuRoC cut: through the appliance (lock step), the floor its reconstruction found,
+// drawn on llvmpipe as `wallar render` draws it. The floor overlay
 // must cover the pixels where the map's floor points project (where the floor is), fill much
 // of the lower image and stay out of the upper. Its PNGs are kept in
 // <build>/test_artifacts/euroc_view (checked by eye: the overlay lies on the floor's pattern).
 TEST(HeadsetViewEuroc, TheFloorOverlayCoversTheFloorInTheImage) {
   const recording::EurocRecording rec = recording::read_euroc(bundled_recording());
-  firmware::TrackRecordingOptions options;
-  options.tracking.mapping_thread = false;
-  options.gravity_aligned = true;
   std::atomic<bool> stop{false};
-  const firmware::TrackRecordingResult track = firmware::track_recording(rec, options, stop);
-  const dsp::RoomConfig config =
-      dsp::room_config_for_map(track.keyframe_centres, Eigen::Vector3d(0.0, 0.0, -1.0), 0.04);
-  dsp::RoomEstimator estimator(track.map.size());
-  const dsp::RoomResult room = estimator.estimate(track.map, config);
+  const firmware::ApplianceReport report = firmware::run_over_recording(
+      rec, firmware::BoardConfig{}, firmware::offline_options(firmware::ApplianceMode::kLockStep),
+      stop);
+  firmware::RunEvaluationOptions eval_options;
+  eval_options.gravity_aligned = true;
+  const firmware::RunOutputs track = firmware::evaluate_run(rec, report, eval_options).outputs;
+  ASSERT_TRUE(track.room.has_value());
+  const dsp::RoomResult& room = *track.room;
   WallModel floor_only;
   for (const Wall& w : room.model.walls) {
     if (w.kind == SurfaceKind::kFloor) floor_only.walls.push_back(w);
@@ -84,7 +85,7 @@ TEST(HeadsetViewEuroc, TheFloorOverlayCoversTheFloorInTheImage) {
   firmware::HeadsetView view(rig, view_options);
 
   StereoFrame pair;
-  pair.t_ns = track.frames[0].t_ns;
+  pair.t_ns = report.trajectory[0].t_ns;
   pair.left.image = recording::load_png_gray(rec.cams[0].image_path(rec.cams[0].frames[0]));
   pair.right.image = recording::load_png_gray(rec.cams[1].image_path(rec.cams[1].frames[0]));
   ASSERT_EQ(track.poses[0].t_ns, rec.cams[0].frames[0].t_ns);

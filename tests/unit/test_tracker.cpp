@@ -25,8 +25,8 @@
 #include "wallar/dsp/tracking/tracker.hpp"
 #include "wallar/dsp/walls/room.hpp"
 #include "wallar/dsp/walls/room_check.hpp"
-#include "wallar/firmware/track_recording.hpp"
-#include "wallar/firmware/tracking.hpp"
+#include "wallar/firmware/offline.hpp"
+#include "wallar/firmware/tracking_and_mapping.hpp"
 
 namespace wallar {
 namespace {
@@ -301,7 +301,7 @@ SyntheticRun fly_through_room(int frames, double rate_hz) {
   firmware::TrackingOptions options;
   options.mapping_thread = false;  // lock step: repeatable
   options.use_gyro = false;
-  firmware::TrackingSystem system(synthetic_rig(cam), options);
+  firmware::TrackingAndMapping system(synthetic_rig(cam), options);
   SyntheticRun run;
   run.truth = dsp::synthetic_trajectory(room, frames, rate_hz);
   const SE3d T_world0 = run.truth.front().T_world_body;  // the tracker's world: the first camera
@@ -371,17 +371,26 @@ StereoFrame euroc_pair(std::size_t i) {
   return f;
 }
 
+// Through the appliance's modules, as `wallar track` runs them: lock step and every frame with
+// the mapping thread.
 TEST(TrackerEuroc, StillSequenceDriftsLittleAndItsMapHoldsTheFloor) {
   for (const bool thread : {false, true}) {
-    firmware::TrackRecordingOptions options;
-    options.tracking.mapping_thread = thread;
-    options.gravity_aligned = true;
-    options.evaluate = true;
+    const firmware::ApplianceOptions options = firmware::offline_options(
+        thread ? firmware::ApplianceMode::kEveryFrame : firmware::ApplianceMode::kLockStep);
     const std::atomic<bool> stop{false};
-    const firmware::TrackRecordingResult r = firmware::track_recording(euroc_still(), options, stop);
+    const firmware::ApplianceReport report =
+        firmware::run_over_recording(euroc_still(), firmware::BoardConfig{}, options, stop);
+    firmware::RunEvaluationOptions eval_options;
+    eval_options.gravity_aligned = true;
+    eval_options.ground_truth = true;
+    const firmware::RunEvaluation r = firmware::evaluate_run(euroc_still(), report, eval_options);
     SCOPED_TRACE(thread ? "mapping thread" : "lock step");
-    ASSERT_EQ(r.frames.size(), 40u);
-    for (const dsp::TrackResult& f : r.frames) EXPECT_EQ(f.state, dsp::TrackingState::kTracking);
+    ASSERT_EQ(report.trajectory.size(), 40u);
+    EXPECT_EQ(report.frames_overwritten, 0u);
+    for (const firmware::PoseRecord& f : report.trajectory) {
+      EXPECT_EQ(f.state, dsp::TrackingState::kTracking);
+      EXPECT_GT(f.times.total_ns, 0);  // the tracker's stage clock runs in the appliance
+    }
     ASSERT_TRUE(r.drift_m && r.drift_deg);
     std::printf("EuRoC still (%s): drift %.4f m %.3f deg\n", thread ? "thread" : "lockstep",
                 *r.drift_m, *r.drift_deg);
@@ -395,14 +404,14 @@ TEST(TrackerEuroc, StillSequenceDriftsLittleAndItsMapHoldsTheFloor) {
     EXPECT_LT(*r.floor->free_fit_vs_ground_truth_deg, 2.0);
     EXPECT_NEAR(r.floor->distance_below_m, 0.93, 0.1);  // the IMU sits ~0.93 m above the floor
     // The map is in the gravity-aligned body world: the floor points are below, not beside.
-    EXPECT_GT(r.map.size(), 150u);
+    EXPECT_GT(r.outputs.map.size(), 150u);
   }
 }
 
 TEST(TrackerEuroc, OnePairMakesAMap) {
   firmware::TrackingOptions options;
   options.mapping_thread = false;
-  firmware::TrackingSystem system(euroc_still().rig(), options);
+  firmware::TrackingAndMapping system(euroc_still().rig(), options);
   const dsp::TrackResult r = system.on_stereo(euroc_pair(0));
   EXPECT_EQ(r.state, dsp::TrackingState::kTracking);
   EXPECT_TRUE(r.keyframe);
@@ -419,7 +428,7 @@ TEST(TrackerEuroc, OnePairMakesAMap) {
 TEST(TrackerBadInput, BlankStartDarkMiddleRepeatsAndGapsWrongSizes) {
   firmware::TrackingOptions options;
   options.mapping_thread = false;
-  firmware::TrackingSystem system(euroc_still().rig(), options);
+  firmware::TrackingAndMapping system(euroc_still().rig(), options);
   const auto pose_ok = [](const dsp::TrackResult& r) {
     return r.T_world_cam.matrix().allFinite() && r.T_world_cam.translation().norm() < 0.01;
   };
@@ -475,10 +484,11 @@ TEST(TrackerBadInput, ACalibrationThatDoesNotFitTheImagesIsAClearError) {
     cam.calib.width_px = 640;  // the images are 752 wide
     cam.frames.resize(3);
   }
-  firmware::TrackRecordingOptions options;
   const std::atomic<bool> stop{false};
   try {
-    (void)firmware::track_recording(rec, options, stop);
+    const firmware::ApplianceOptions options =
+        firmware::offline_options(firmware::ApplianceMode::kEveryFrame);
+    (void)firmware::run_over_recording(rec, firmware::BoardConfig{}, options, stop);
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
     // The replay checks each image against the calibration and names the file.

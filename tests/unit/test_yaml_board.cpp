@@ -6,7 +6,7 @@
 #include "test_support.hpp"
 #include "wallar/drivers/config/yaml.hpp"
 #include "wallar/firmware/board.hpp"
-#include "wallar/firmware/tracking.hpp"
+#include "wallar/firmware/tracking_and_mapping.hpp"
 #include "wallar/firmware/live_stereo.hpp"
 
 namespace wallar::test {

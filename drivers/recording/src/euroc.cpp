@@ -291,10 +291,10 @@ EurocRecording read_euroc(const fs::path& root, const ReadOptions& options) {
   if (!fs::is_directory(root, ec)) throw_input_error(root.string(), 0, "no such recording folder");
   EurocRecording rec;
   rec.mav0 = fs::is_directory(root / "mav0", ec) ? root / "mav0" : root;
-  for (const char* sub : {"cam0", "cam1", "imu0"}) {
+  for (const char* sub : {"cam0", "cam1"}) {
     if (!fs::is_directory(rec.mav0 / sub, ec)) {
       throw_input_error((rec.mav0 / sub).string(), 0,
-                        "missing folder (an EuRoC recording needs mav0/cam0, cam1 and imu0)");
+                        "missing folder (an EuRoC recording needs mav0/cam0 and cam1)");
     }
   }
   for (int i = 0; i < 2; ++i) {
@@ -312,9 +312,15 @@ EurocRecording read_euroc(const fs::path& root, const ReadOptions& options) {
       }
     }
   }
-  const fs::path imu_csv = rec.mav0 / "imu0" / "data.csv";
-  rec.imu = parse_imu_csv(read_text_file(imu_csv), imu_csv.string());
-  rec.imu_calib = read_imu_sensor_yaml(rec.mav0 / "imu0" / "sensor.yaml");
+  // The IMU is optional: no imu0 folder, or a data.csv of its header only, is a vision-only
+  // recording (no samples, identity T_BS); samples need their sensor.yaml.
+  if (fs::is_directory(rec.mav0 / "imu0", ec)) {
+    const fs::path imu_csv = rec.mav0 / "imu0" / "data.csv";
+    rec.imu = parse_imu_csv(read_text_file(imu_csv), imu_csv.string());
+    const fs::path imu_yaml = rec.mav0 / "imu0" / "sensor.yaml";
+    if (!rec.imu.empty() || fs::exists(imu_yaml, ec))
+      rec.imu_calib = read_imu_sensor_yaml(imu_yaml);
+  }
   const fs::path gt_csv = rec.mav0 / "state_groundtruth_estimate0" / "data.csv";
   if (fs::exists(gt_csv, ec)) {
     rec.ground_truth = parse_ground_truth_csv(read_text_file(gt_csv), gt_csv.string());

@@ -177,29 +177,47 @@ nlohmann::json run_real_study(const RealStudyOptions& options, OutputDir& out) {
   const std::atomic<bool> never_stop{false};
   source::ReplaySource(rec, list_options).run(lister, never_stop);
   const std::vector<StereoFrame>& all = lister.pairs;
+  const bool orb = options.map_source == RealMapSource::kOrb;
   const auto wanted = static_cast<std::size_t>(options.pairs);
-  if (all.size() < wanted) {
+  if (orb && all.size() < wanted) {
     throw_input_error((rec.cams[0].dir / "data.csv").string(), 0,
                       "has " + std::to_string(all.size()) + " stereo pairs, the study asks for " +
                           std::to_string(wanted) + " (--pairs)");
   }
-
-  // Pairs spread evenly from the first to the last, their images loaded.
-  std::vector<StereoFrame> chosen;
-  for (std::size_t k = 0; k < wanted; ++k) {
-    const std::size_t i =
-        wanted == 1 ? 0
-                    : static_cast<std::size_t>(std::llround(static_cast<double>(k) *
-                                                            static_cast<double>(all.size() - 1) /
-                                                            static_cast<double>(wanted - 1)));
-    StereoFrame f = all[i];
+  if (all.empty()) throw_input_error(where, 0, "the recording has no stereo pairs");
+  const auto load_images = [&rec](StereoFrame f) {
     for (int c = 0; c < 2; ++c) {
       const recording::CameraStream& cam = rec.cams[static_cast<std::size_t>(c)];
       CameraFrame& side = c == 0 ? f.left : f.right;
       side.image = recording::load_png_gray(cam.image_path(cam.frames[side.sequence]),
                                             cam.calib.width_px, cam.calib.height_px);
     }
-    chosen.push_back(std::move(f));
+    return f;
+  };
+
+  // The map's pairs: spread evenly from the first to the last (orb), or the pair of the given
+  // map's frame; the first of them is the overlay's.
+  std::vector<StereoFrame> chosen;
+  GivenMap given;
+  double given_ms = 0.0;  // the appliance's run, for its map
+  if (orb) {
+    for (std::size_t k = 0; k < wanted; ++k) {
+      const std::size_t i =
+          wanted == 1 ? 0
+                      : static_cast<std::size_t>(std::llround(static_cast<double>(k) *
+                                                              static_cast<double>(all.size() - 1) /
+                                                              static_cast<double>(wanted - 1)));
+      chosen.push_back(load_images(all[i]));
+    }
+  } else {
+    if (!options.appliance_map) throw std::logic_error("run_real_study: no appliance map given");
+    const TimeNs t_given_ns = monotonic_now_ns();
+    given = options.appliance_map(rec);
+    given_ms = ms_since(t_given_ns);
+    const auto it = std::find_if(all.begin(), all.end(),
+                                 [&](const StereoFrame& f) { return f.t_ns == given.t_ns; });
+    if (it == all.end()) throw_input_error(where, 0, "the map's frame is not a stereo pair");
+    chosen.push_back(load_images(*it));
   }
 
   // Gravity at rest over the frames' span; "down" in the left camera's frame.
@@ -213,11 +231,17 @@ nlohmann::json run_real_study(const RealStudyOptions& options, OutputDir& out) {
   std::optional<Eigen::Vector3d> up_cam_gt;
   if (gt != nullptr) up_cam_gt = R_body_cam.transpose() * gt->up_body();
 
-  // The sparse map (left camera frame of the first chosen pair).
+  // The map (left camera frame of the first chosen pair).
   const TimeNs t_map_ns = monotonic_now_ns();
-  dsp::SparseStereo stereo(rig);
-  const dsp::SparseMap sparse = dsp::build_sparse_map(stereo, chosen, still);
-  const double map_ms = ms_since(t_map_ns);
+  dsp::SparseMap sparse;
+  if (orb) {
+    dsp::SparseStereo stereo(rig);
+    sparse = dsp::build_sparse_map(stereo, chosen, still);
+  } else {
+    sparse.points = std::move(given.points);
+    sparse.pairs_used = given.frames;
+  }
+  const double map_ms = orb ? ms_since(t_map_ns) : given_ms;
   const PointCloud& map = sparse.points;
   if (map.size() < 3) {
     throw_input_error(where, 0,
@@ -287,8 +311,9 @@ nlohmann::json run_real_study(const RealStudyOptions& options, OutputDir& out) {
     legend.floor_line = line;
   }
   char title[160];
-  std::snprintf(title, sizeof title, "%zu map points from %zu stereo pair%s, %s", map.size(),
+  std::snprintf(title, sizeof title, "%zu map points from %zu stereo pair%s (%s), %s", map.size(),
                 sparse.pairs_used, sparse.pairs_used == 1 ? "" : "s",
+                orb ? "ORB matches" : "the appliance's tracker",
                 down_cam ? "gravity-aligned" : "3-D (IMU not at rest)");
   legend.title = title;
 
@@ -299,22 +324,25 @@ nlohmann::json run_real_study(const RealStudyOptions& options, OutputDir& out) {
            {"gravity_norm_m_s2", est->mean_accel_m_s2.norm()},
            {"up_body", vec_json(est->mean_accel_m_s2.normalized())}};
   }
-  nlohmann::json summary = {{"recording", where},
-                            {"ground_truth", gt != nullptr},
-                            {"threshold_m", options.threshold_m},
-                            {"seed", options.seed},
-                            {"pairs_in_recording", all.size()},
-                            {"pairs_requested", wanted},
-                            {"pairs_used", sparse.pairs_used},
-                            {"points", map.size()},
-                            {"gravity_aligned", down_cam.has_value()},
-                            {"imu", imu},
-                            {"imu_gravity_vs_ground_truth_deg", optional_json(imu_vs_gt_deg)},
-                            {"surfaces", surfaces},
-                            {"rounds", room.rounds},
-                            {"floor", floor_json},
-                            {"map_time_ms", map_ms},
-                            {"room_time_ms", room_ms}};
+  nlohmann::json summary = {
+      {"recording", where},
+      {"ground_truth", gt != nullptr},
+      {"threshold_m", options.threshold_m},
+      {"seed", options.seed},
+      {"map_source", orb ? "orb" : "appliance"},
+      {"map_description", orb ? std::string("rectified ORB matches") : given.description},
+      {"pairs_in_recording", all.size()},
+      {"pairs_requested", orb ? nlohmann::json(wanted) : nlohmann::json()},
+      {"pairs_used", sparse.pairs_used},
+      {"points", map.size()},
+      {"gravity_aligned", down_cam.has_value()},
+      {"imu", imu},
+      {"imu_gravity_vs_ground_truth_deg", optional_json(imu_vs_gt_deg)},
+      {"surfaces", surfaces},
+      {"rounds", room.rounds},
+      {"floor", floor_json},
+      {"map_time_ms", map_ms},
+      {"room_time_ms", room_ms}};
 
   // The files: figure and table first, the summary last.
   const Image overlay = draw_overlay(chosen[0].left.image, rig.cams[0], map, surface, room, legend);

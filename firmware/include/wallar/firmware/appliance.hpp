@@ -2,31 +2,32 @@
 /// @file appliance.hpp
 /// @brief The appliance (thesis fig. 3.3-3.4): the supervisor that builds every module from a
 /// board file, couples their channels, runs them on the threads of one table, watches their
-/// health and stops them in two phases.
+/// health and stops them in two phases. Every command that tracks runs it: `wallar run` in
+/// real time, `wallar track`, `render` and `eval real` over a recording, as fast as tracking
+/// goes.
 ///
-/// Modules and channels:
+/// Modules (firmware/appliance/) and channels:
 ///
-///   source (replay | capture + imu) ──ImuSample──▶ SpscRing (never blocks, drops counted)
-///        │                          ──StereoFrame─▶ NewestMailbox (counted references; older
-///        │                                           frames overwritten and counted) + Wakeup
+///   source module (replay_module | live_module) ──ImuSample──▶ SpscRing ─┐ (pipeline_sink)
+///        │                                      ──StereoFrame─▶ NewestMailbox + Wakeup
 ///        ▼
-///   tracking thread: attitude filter (IMU), tracker, degraded modes ──pose──▶ Seqlock
-///        │ key-frames ─▶ mapping thread (TrackingSystem) ──map──▶ TripleBuffer
-///        │ ViewPost ─▶ NewestMailbox ─▶ render thread (LiveView)        │
-///        ▼                                                              ▼
-///   reconstruction thread (periodic; re-runs when the map grew) ──walls──▶ TripleBuffer ─▶ render
-///   supervisor (the calling thread, periodic): stop/exit/reset, SIGUSR1 stats, health,
-///   systemd watchdog.
+///   tracking thread (tracking_thread): attitude filter, TrackingAndMapping (tracker front end;
+///        mapper on the mapping thread or in lock step), degraded modes ──pose──▶ Seqlock
+///        │ map ─▶ TripleBuffer ─▶ reconstruct thread (reconstruction) ──walls──▶ TripleBuffer
+///        │ ViewPost ─▶ NewestMailbox ─▶ render thread (LiveView)  ◀──────────────────┘
+///   supervisor (this call's thread, periodic): stop/exit/reset (inputs), SIGUSR1 stats
+///   (stats), health, systemd watchdog.
 ///
-/// Deterministic mode (replay only): the source waits until tracking has taken each frame and
-/// the IMU ring has room, mapping runs in lock step and reconstruction runs on the tracking
-/// thread at fixed points, so poses and walls are bit-identical from run to run for a seed.
+/// Modes (ApplianceMode): real time (the sensors' pace; the newest frame is tracked, older ones
+/// overwritten and counted); every frame (replay only: the replay waits until tracking took each
+/// frame, mapping on its thread, reconstruction periodic: `wallar track`); lock step (replay
+/// only: every frame, mapping on the tracking thread after each key-frame, reconstruction at
+/// fixed points: bit-identical from run to run for a seed; `wallar track --lockstep`, `wallar
+/// run --deterministic`, `render`, `eval real`).
 ///
-/// Degraded modes are decided in sensor time on the tracking thread (so they replay the same):
-/// no stereo frame for `camera_timeout` of IMU time -> camera lost (IMU-only orientation from
-/// the last visual pose, last wall model kept, shown as such); no IMU sample for
-/// `imu_timeout` of camera time -> IMU lost (3-D wall search, no gyro prior). Each transition is
-/// logged once and counted; both come back without a restart.
+/// Worlds: the modules work in the tracker's world (its first rectified left camera); the
+/// report's trajectory, map and walls are in that world, and T_body_rect takes them into the
+/// first body pose's, the world of the commands' files (offline.hpp).
 ///
 /// Threading: run_appliance() is called from one thread, which becomes the supervisor; `stop`
 /// and `stats_request` may be set from any thread or a signal handler.
@@ -45,37 +46,36 @@
 #include "wallar/drivers/source/replay_source.hpp"
 #include "wallar/dsp/tracking/tracker.hpp"
 #include "wallar/dsp/walls/room.hpp"
+#include "wallar/firmware/appliance/allocation_count.hpp"
+#include "wallar/firmware/appliance/records.hpp"
+#include "wallar/firmware/appliance/replay_module.hpp"
+#include "wallar/firmware/appliance/stats.hpp"
 #include "wallar/firmware/board.hpp"
-#include "wallar/firmware/latency_histogram.hpp"
 #include "wallar/firmware/live_view.hpp"
-#include "wallar/firmware/tracking.hpp"
+#include "wallar/firmware/tracking_and_mapping.hpp"
 
 namespace wallar::firmware {
 
-/// A fault injected into the sensor streams at a time of the (first) replay, in seconds from
-/// its first sample: "camera-stall@1.0+0.5", "imu-unplug@0.4+0.6", "corrupt-frame@1.2".
-struct FaultSpec {
-  enum class Kind : std::uint8_t {
-    kCameraStall,
-    kImuUnplug,
-    kCorruptFrame
-  } kind = Kind::kCameraStall;
-  double at_s = 0.0;
-  double duration_s = 0.0;  //!< stalls and unplugs; corrupt-frame hits one frame
+enum class ApplianceMode : std::uint8_t {
+  kRealTime,    //!< the sensors' pace: newest frame tracked, mapping thread, periodic walls
+  kEveryFrame,  //!< replay only: no frame overwritten, mapping thread, periodic walls
+  kLockStep,    //!< replay only: every frame, mapping and walls in lock step (repeatable)
 };
-/// Parses a fault; throws InputError naming `text` when it is malformed.
-FaultSpec parse_fault(const std::string& text);
-std::string to_string(const FaultSpec& fault);
+const char* to_string(ApplianceMode mode);
 
 struct ApplianceOptions {
-  source::ReplayOptions replay;    //!< replay boards: rate, offset, skip
-  int loops = 1;                   //!< replay the recording this often (0: until stopped)
+  ApplianceMode mode = ApplianceMode::kRealTime;
+  source::ReplayOptions replay;  //!< replay boards: rate, offset, skip
+  /// Test tooling (firmware/hil: loops, injected faults), made for the recording at start;
+  /// empty: the recording is played once, as it is.
+  std::function<std::unique_ptr<ReplayPlan>(const recording::EurocRecording&)> replay_plan;
   DurationNs max_duration_ns = 0;  //!< > 0: stop after this much wall time
-  bool deterministic = false;      //!< see the file comment (replay only)
   bool view = true;                //!< draw the headset view (render thread)
   std::filesystem::path png_dir;   //!< write every `png_every`th drawn view here (empty: none)
   int png_every = 0;
-  std::vector<FaultSpec> faults;
+  /// Draw this wall model (in the first body pose's world) instead of the reconstruction's.
+  std::optional<WallModel> view_walls;
+  bool use_gyro = true;  //!< the gyro's rotation as the tracker's prior
   dsp::ScoreMethod wall_method = dsp::ScoreMethod::kBsf;
   double wall_threshold_m = 0.04;  //!< inlier band of the tracker's map
   int max_surfaces = 6;
@@ -86,6 +86,7 @@ struct ApplianceOptions {
   DurationNs imu_timeout_ns = 100 * kNsPerMs;
   DurationNs supervisor_period_ns = 100 * kNsPerMs;
   DurationNs rss_sample_period_ns = 1 * kNsPerS;  //!< resident memory sampled this often
+  std::size_t max_records = 1 << 16;              //!< per-frame records kept (55 min at 20 Hz)
   bool realtime = true;    //!< SCHED_FIFO, affinity, mlockall where permitted
   std::uint64_t seed = 1;  //!< wall search seeds (seed + run index)
   std::string input_keys;  //!< evdev keyboard ("/dev/input/eventN", "name:..."), or none
@@ -93,51 +94,27 @@ struct ApplianceOptions {
   std::function<void(const std::string&)> log;
 };
 
-struct PoseRecord {
-  TimeNs t_ns = 0;
-  SE3d T_world_body = SE3d::Identity();
-  dsp::TrackingState state = dsp::TrackingState::kInitialising;
-};
-
-struct ThreadRow {
-  std::string name;
-  std::string policy;  //!< "FIFO 80" or "OTHER"
-  int cpu = -1;
-  double cpu_s = 0.0;
-  double cpu_percent = 0.0;  //!< of one core over the run
-  std::uint64_t wakeups = 0;
-  std::uint64_t misses = 0;
-  std::optional<std::uint64_t> allocations;  //!< after start-up (when counted in this build)
-  std::string note;                          //!< fallback reason or role
-};
-
-struct StageRow {
-  std::string name;
-  LatencySummary latency;
-  DurationNs deadline_ns = 0;  //!< 0: none
-  std::uint64_t misses = 0;    //!< samples over the deadline
-};
-
-struct DegradedCounters {
-  std::uint64_t camera_lost = 0, camera_recovered = 0, imu_lost = 0, imu_recovered = 0;
-  std::uint64_t imu_only_poses = 0;   //!< poses published from the IMU alone
-  std::uint64_t faults_injected = 0;  //!< frames/samples withheld or corrupted
-  std::uint64_t resets = 0;
-};
-
 struct ApplianceReport {
   std::string source;  //!< what was started
   std::string display;
+  ApplianceMode mode = ApplianceMode::kRealTime;
   source::ReplayStats replay;  //!< summed over loops
   int loops_played = 0;
-  std::optional<dsp::RoomResult> room;  //!< the last wall model
+  std::optional<dsp::RoomResult> room;  //!< the last wall model (tracker's world)
   bool room_gravity = false;            //!< found with gravity (2-D mode)
   std::uint64_t reconstructions = 0;
   std::size_t map_points = 0, map_keyframes = 0;
-  std::shared_ptr<const dsp::MapSnapshot> map;  //!< the final map (after a global adjustment)
+  /// The final map (after a global adjustment), tracker's world.
+  std::shared_ptr<const dsp::MapSnapshot> map;
+  /// The tracker's world (its first rectified left camera) into the first body pose's world.
+  SE3d T_body_rect = SE3d::Identity();
   TrackingCounters tracking;
+  std::vector<std::int64_t> mapping_times_ns;  //!< each local bundle adjustment
   DegradedCounters degraded;
-  std::vector<PoseRecord> trajectory;  //!< every tracked frame's pose (world = first camera)
+  /// One record per frame the tracking module took, tracked, lost or rejected (tracker's
+  /// world), up to ApplianceOptions::max_records.
+  std::vector<PoseRecord> trajectory;
+  bool imu = false;  //!< IMU samples reached tracking (false: a vision-only run)
   std::uint64_t imu_samples = 0, imu_dropped = 0;
   std::uint64_t frames_in = 0, frames_overwritten = 0, frames_tracked = 0;
   LiveViewStats view;
@@ -154,21 +131,11 @@ struct ApplianceReport {
 
 /// Builds the modules of `board`, runs them until the source ends, `stop` is set, the exit
 /// input fires or the time limit passes, and returns the report. Throws InputError (bad
-/// board/recording) or DeviceError/DisplayError (a device that cannot be opened) before any
-/// thread starts; errors of a module thread are rethrown after the others were stopped.
+/// board, recording or calibration; an unreadable image during the replay) or
+/// DeviceError/DisplayError (a device that cannot be opened); errors of a module thread are
+/// rethrown after the others were stopped.
 ApplianceReport run_appliance(const BoardConfig& board, const ApplianceOptions& options,
                               const std::atomic<bool>& stop,
                               std::atomic<bool>* stats_request = nullptr);
-
-/// The stats table (threads, then stages), fixed-width text.
-std::string format_stats_table(const std::vector<ThreadRow>& threads,
-                               const std::vector<StageRow>& stages);
-
-/// Allocation counting per thread: a build that replaces operator new (the wallar executable,
-/// the allocation tests) counts into the calling thread's counter when one is set. The
-/// appliance sets one per module thread once its start-up is over.
-extern thread_local std::atomic<std::uint64_t>* tl_allocation_counter;
-/// True in builds whose operator new counts (set by the replacement's translation unit).
-extern bool g_allocations_counted;
 
 }  // namespace wallar::firmware

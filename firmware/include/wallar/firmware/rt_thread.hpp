@@ -22,6 +22,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <exception>
 #include <functional>
 #include <memory>
 #include <string>
@@ -76,6 +77,8 @@ class RtThread {
   [[nodiscard]] bool failed() const;
   /// The escaped exception's what() ("unknown exception" for non-std ones); empty otherwise.
   [[nodiscard]] std::string error() const;
+  /// The escaped exception itself (to rethrow with its type), null otherwise.
+  [[nodiscard]] std::exception_ptr exception() const;
 
  private:
   struct State;

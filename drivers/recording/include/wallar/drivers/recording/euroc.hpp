@@ -62,7 +62,7 @@ struct GroundTruthState {
 struct EurocRecording {
   std::filesystem::path mav0;  //!< the folder holding cam0, cam1, imu0
   std::array<CameraStream, 2> cams;
-  std::vector<ImuSample> imu;  //!< strictly increasing t_ns
+  std::vector<ImuSample> imu;  //!< strictly increasing t_ns; empty for a vision-only recording
   ImuCalibration imu_calib;
   std::vector<GroundTruthState> ground_truth;  //!< empty when the recording has none
 
@@ -86,7 +86,9 @@ struct ReadOptions {
   bool check_image_files = true;
 };
 
-/// Reads a recording from ROOT or ROOT/mav0. Throws InputError naming the file and line of the
+/// Reads a recording from ROOT or ROOT/mav0: cam0 and cam1 are required; imu0 is optional (a
+/// vision-only recording has no imu0 folder or a data.csv of its header only: `imu` stays empty
+/// and `imu_calib` the identity). Throws InputError naming the file and line of the
 /// first problem: missing folder or file, short or malformed row, non-numeric field,
 /// non-monotonic or duplicate timestamps, missing calibration key, wrong matrix size.
 EurocRecording read_euroc(const std::filesystem::path& root, const ReadOptions& options = {});

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-/// @file tracking.hpp
+/// @file tracking_and_mapping.hpp
 /// @brief Tracking and mapping wired together (thesis fig. 3.3: tracking and mapping on their
 /// own threads): the Tracker on the caller's thread, the Mapper on a mapping thread that it
 /// never waits for, and the gyro's rotation between frames as the tracker's prior.
@@ -63,13 +63,13 @@ struct TrackingCounters {
   std::uint64_t stale_updates = 0;
 };
 
-class TrackingSystem {
+class TrackingAndMapping {
  public:
-  TrackingSystem(const RigCalibration& rig, const TrackingOptions& options,
-                 dsp::Tracker::Clock clock = nullptr);
-  ~TrackingSystem();  // stops the mapping thread
-  TrackingSystem(const TrackingSystem&) = delete;
-  TrackingSystem& operator=(const TrackingSystem&) = delete;
+  TrackingAndMapping(const RigCalibration& rig, const TrackingOptions& options,
+                     dsp::Tracker::Clock clock = nullptr);
+  ~TrackingAndMapping();  // stops the mapping thread
+  TrackingAndMapping(const TrackingAndMapping&) = delete;
+  TrackingAndMapping& operator=(const TrackingAndMapping&) = delete;
 
   void on_imu(const ImuSample& sample);
   /// The gyro bias the attitude filter estimates, subtracted from the rates of the rotation

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
-/// @file tracking.cpp
+/// @file tracking_and_mapping.cpp
 /// @brief The tracker on the caller's thread, the mapper on its own, rings between them.
-#include "wallar/firmware/tracking.hpp"
+#include "wallar/firmware/tracking_and_mapping.hpp"
 
 #include <chrono>
 #include <span>
@@ -30,8 +30,8 @@ TrackingOptions tracking_options(const TrackingConfig& board) {
   return o;
 }
 
-TrackingSystem::TrackingSystem(const RigCalibration& rig, const TrackingOptions& options,
-                               dsp::Tracker::Clock clock)
+TrackingAndMapping::TrackingAndMapping(const RigCalibration& rig, const TrackingOptions& options,
+                                       dsp::Tracker::Clock clock)
     : options_(options),
       tracker_(rig, options.tracker, clock),
       mapper_(std::make_unique<dsp::Mapper>(tracker_.intrinsics(), options.mapper)),
@@ -56,17 +56,17 @@ TrackingSystem::TrackingSystem(const RigCalibration& rig, const TrackingOptions&
   if (options_.mapping_thread) start_mapping();
 }
 
-void TrackingSystem::start_mapping() {
+void TrackingAndMapping::start_mapping() {
   stop_.store(false);
   thread_ = std::make_unique<RtThread>(options_.mapping_thread_spec, [this] { mapping_loop(); });
 }
 
-TrackingSystem::~TrackingSystem() {
+TrackingAndMapping::~TrackingAndMapping() {
   stop_.store(true);
   if (thread_ && thread_->joinable()) thread_->join();
 }
 
-void TrackingSystem::reset() {
+void TrackingAndMapping::reset() {
   if (thread_ && thread_->joinable()) {
     stop_.store(true);
     thread_->join();  // from here this thread owns both ends of both rings
@@ -87,13 +87,13 @@ void TrackingSystem::reset() {
   if (options_.mapping_thread) start_mapping();
 }
 
-void TrackingSystem::on_imu(const ImuSample& sample) {
+void TrackingAndMapping::on_imu(const ImuSample& sample) {
   gyro_[gyro_head_] = sample;
   gyro_head_ = (gyro_head_ + 1) % gyro_.size();
   gyro_count_ = std::min(gyro_count_ + 1, gyro_.size());
 }
 
-dsp::RotationPrior TrackingSystem::gyro_prior(TimeNs t_ns) {
+dsp::RotationPrior TrackingAndMapping::gyro_prior(TimeNs t_ns) {
   dsp::RotationPrior prior;
   if (!options_.use_gyro || last_frame_t_ns_ < 0 || gyro_count_ < 2) return prior;
   // The ring as two time-ordered spans (older, newer).
@@ -116,11 +116,11 @@ dsp::RotationPrior TrackingSystem::gyro_prior(TimeNs t_ns) {
   return prior;
 }
 
-void TrackingSystem::set_gyro_bias(const Eigen::Vector3d& bias_rad_s) {
+void TrackingAndMapping::set_gyro_bias(const Eigen::Vector3d& bias_rad_s) {
   gyro_bias_rad_s_ = bias_rad_s;
 }
 
-dsp::TrackResult TrackingSystem::on_stereo(const StereoFrame& frame) {
+dsp::TrackResult TrackingAndMapping::on_stereo(const StereoFrame& frame) {
   // Corrections from the mapping thread first: the pose then starts from the adjusted map.
   if (options_.mapping_thread) {
     while (dsp::MapCorrection* c = corrections_.front()) {
@@ -162,7 +162,8 @@ dsp::TrackResult TrackingSystem::on_stereo(const StereoFrame& frame) {
   return result;
 }
 
-void TrackingSystem::map_keyframe(const dsp::KeyframeMessage& message, dsp::MapCorrection& out) {
+void TrackingAndMapping::map_keyframe(const dsp::KeyframeMessage& message,
+                                      dsp::MapCorrection& out) {
   const TimeNs t0 = monotonic_now_ns();
   mapper_->add_keyframe(message);
   const dsp::MapperStats stats = mapper_->local_adjust(out);
@@ -173,7 +174,7 @@ void TrackingSystem::map_keyframe(const dsp::KeyframeMessage& message, dsp::MapC
   mapping_times_.push_back(t1 - t0);
 }
 
-void TrackingSystem::note(const dsp::MapperStats& stats) {
+void TrackingAndMapping::note(const dsp::MapperStats& stats) {
   culled_.fetch_add(static_cast<std::uint64_t>(stats.culled), std::memory_order_relaxed);
   culled_keyframes_.fetch_add(static_cast<std::uint64_t>(stats.culled_keyframes),
                               std::memory_order_relaxed);
@@ -184,7 +185,7 @@ void TrackingSystem::note(const dsp::MapperStats& stats) {
   stale_messages_.store(mapper_->stale_messages(), std::memory_order_relaxed);
 }
 
-void TrackingSystem::publish_map() {
+void TrackingAndMapping::publish_map() {
   auto snapshot = std::make_shared<const dsp::MapSnapshot>(mapper_->snapshot());
   if (options_.map_channel != nullptr) {
     options_.map_channel->back() = snapshot;
@@ -194,7 +195,7 @@ void TrackingSystem::publish_map() {
   map_ = std::move(snapshot);
 }
 
-void TrackingSystem::mapping_loop() {
+void TrackingAndMapping::mapping_loop() {
   int since_global = 0;
   for (;;) {
     if (dsp::KeyframeMessage* kf = keyframes_.front()) {
@@ -226,7 +227,7 @@ void TrackingSystem::mapping_loop() {
   }
 }
 
-std::shared_ptr<const dsp::MapSnapshot> TrackingSystem::finish() {
+std::shared_ptr<const dsp::MapSnapshot> TrackingAndMapping::finish() {
   if (thread_ && thread_->joinable()) {
     // Let the mapper take what is queued, then stop it. (front() is the consumer's: this
     // thread is the producer, so it may only ask how full the ring is.)
@@ -254,12 +255,12 @@ std::shared_ptr<const dsp::MapSnapshot> TrackingSystem::finish() {
   return latest_map();
 }
 
-std::shared_ptr<const dsp::MapSnapshot> TrackingSystem::latest_map() const {
+std::shared_ptr<const dsp::MapSnapshot> TrackingAndMapping::latest_map() const {
   const std::lock_guard<std::mutex> lock(map_mutex_);
   return map_;
 }
 
-TrackingCounters TrackingSystem::counters() const {
+TrackingCounters TrackingAndMapping::counters() const {
   TrackingCounters c = counters_;
   c.local_adjustments = local_adjustments_.load();
   c.global_adjustments = global_adjustments_.load();
@@ -271,7 +272,7 @@ TrackingCounters TrackingSystem::counters() const {
   return c;
 }
 
-std::vector<std::int64_t> TrackingSystem::mapping_times_ns() const {
+std::vector<std::int64_t> TrackingAndMapping::mapping_times_ns() const {
   const std::lock_guard<std::mutex> lock(map_mutex_);
   return mapping_times_;
 }

@@ -1,0 +1,58 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file faults.hpp
+/// @brief Fault injection for hardware-in-the-loop tests (`wallar run --fault`): a sink between
+/// the replay and the pipeline that withholds or corrupts samples at planned sensor times.
+/// Test tooling, not part of the product's modules.
+///
+/// Threading: parse_fault()/to_string() are pure; a FaultSink is called from the replay thread,
+/// injected() from any thread.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "wallar/drivers/source/sensor_sink.hpp"
+
+namespace wallar::firmware::hil {
+
+/// A fault injected into the sensor streams at a time of the (first) replay, in seconds from
+/// its first sample: "camera-stall@1.0+0.5", "imu-unplug@0.4+0.6", "corrupt-frame@1.2".
+struct FaultSpec {
+  enum class Kind : std::uint8_t {
+    kCameraStall,
+    kImuUnplug,
+    kCorruptFrame
+  } kind = Kind::kCameraStall;
+  double at_s = 0.0;
+  double duration_s = 0.0;  //!< stalls and unplugs; corrupt-frame hits one frame
+};
+/// Parses a fault; throws InputError naming `text` when it is malformed.
+FaultSpec parse_fault(const std::string& text);
+std::string to_string(const FaultSpec& fault);
+
+/// Withholds (camera stall, IMU unplug) or garbles (corrupt frame: noise of the right size)
+/// the samples the faults cover, and forwards the rest to `next`.
+class FaultSink final : public source::SensorSink {
+ public:
+  FaultSink(source::SensorSink& next, std::vector<FaultSpec> faults);
+  void on_imu(const ImuSample& s) override;
+  void on_stereo(const StereoFrame& f) override;
+  void on_unpaired(int cam, const CameraFrame& f) override { next_.on_unpaired(cam, f); }
+  /// Frames and samples withheld or corrupted so far.
+  [[nodiscard]] std::uint64_t injected() const { return injected_.load(); }
+
+ private:
+  bool active(FaultSpec::Kind kind, TimeNs t_ns) const;
+  Image noise_like(const Image& like);
+
+  source::SensorSink& next_;
+  std::vector<FaultSpec> faults_;
+  std::vector<bool> corrupted_;
+  TimeNs t0_ns_ = -1;
+  std::uint64_t lcg_ = 0x853c49e6748fea9bULL;
+  std::atomic<std::uint64_t> injected_{0};
+};
+
+}  // namespace wallar::firmware::hil

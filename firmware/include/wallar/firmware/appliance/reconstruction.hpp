@@ -1,0 +1,95 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file reconstruction.hpp
+/// @brief The reconstruction module: walls, floor and ceiling of the tracker's map, searched
+/// again when the map grew (RoomEstimator, warm-started from the last model so ids are kept),
+/// 2-D with the IMU's gravity, 3-D without; each model published on the wall model's
+/// TripleBuffer.
+///
+/// Reconstruction is the search itself; ReconstructionThread runs it periodically on the
+/// reconstruct thread from the map channel and the pose channel's gravity (real time and every
+/// frame). In lock step the tracking thread calls Reconstruction::maybe_run() itself after
+/// key-frames instead, so the walls come at fixed points of the stream.
+///
+/// Threading: Reconstruction is not thread-safe: one thread at a time (the reconstruct thread,
+/// or the tracking thread in lock step; the supervisor after both stopped). ReconstructionThread
+/// is built, stopped and read by the supervisor; its counters from any thread.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <optional>
+
+#include "wallar/core/seqlock.hpp"
+#include "wallar/core/triple_buffer.hpp"
+#include "wallar/dsp/walls/room.hpp"
+#include "wallar/firmware/appliance/snapshots.hpp"
+#include "wallar/firmware/latency_histogram.hpp"
+#include "wallar/firmware/periodic.hpp"
+#include "wallar/firmware/rt_thread.hpp"
+
+namespace wallar::firmware {
+
+struct ReconstructionOptions {
+  dsp::ScoreMethod method = dsp::ScoreMethod::kBsf;
+  double threshold_m = 0.04;  //!< inlier band of the tracker's map
+  int max_surfaces = 6;
+  double regrow_fraction = 0.10;          //!< re-run when the map grew by this share ...
+  std::size_t min_map_points = 60;        //!< ... and has at least this many points
+  std::uint64_t seed = 1;                 //!< wall search seeds (seed + run index)
+  DurationNs period_ns = 200 * kNsPerMs;  //!< the reconstruct thread's period
+};
+
+class Reconstruction {
+ public:
+  Reconstruction(const ReconstructionOptions& options, std::size_t max_points,
+                 TripleBuffer<WallModel>& out);
+
+  /// Runs when the map grew enough since the last run (or `force`: whenever the map or the
+  /// gravity mode changed); returns whether it ran. A new `epoch` (a reset) forgets the last
+  /// model.
+  bool maybe_run(const dsp::MapSnapshot& map, const std::optional<Eigen::Vector3d>& down,
+                 std::uint32_t epoch, bool force);
+
+  [[nodiscard]] const std::optional<dsp::RoomResult>& result() const { return result_; }
+  [[nodiscard]] bool gravity() const { return last_gravity_; }
+  [[nodiscard]] std::uint64_t runs() const { return runs_; }
+  [[nodiscard]] const LatencyHistogram& time() const { return time_; }
+
+ private:
+  ReconstructionOptions options_;
+  dsp::RoomEstimator estimator_;
+  TripleBuffer<WallModel>& out_;
+  std::optional<WallModel> previous_;
+  std::optional<dsp::RoomResult> result_;
+  std::size_t last_points_ = 0;
+  bool last_gravity_ = false;
+  std::uint32_t epoch_ = 0;
+  std::uint64_t runs_ = 0;
+  LatencyHistogram time_;
+};
+
+/// The reconstruct thread: every period, the newest map and gravity into `reconstruction`.
+/// Allocations are counted, not required to be zero: the search builds its result (a
+/// background module like mapping; tracking never waits for it).
+class ReconstructionThread {
+ public:
+  ReconstructionThread(Reconstruction& reconstruction, TripleBuffer<MapPtr>& maps,
+                       const Seqlock<PoseSnapshot>& pose, DurationNs period_ns, ThreadSpec spec,
+                       const std::atomic<bool>& stop);
+  /// Joins the thread (after `stop` was set).
+  void join() { thread_.join(); }
+  [[nodiscard]] const RtThread& thread() const { return thread_; }
+  [[nodiscard]] std::uint64_t wakeups() const { return wakeups_.load(std::memory_order_relaxed); }
+  /// Periods missed (read after join).
+  [[nodiscard]] std::uint64_t misses() const { return timer_.misses(); }
+  [[nodiscard]] const std::atomic<std::uint64_t>& allocations() const { return allocations_; }
+
+ private:
+  PeriodicTimer timer_;
+  std::atomic<std::uint64_t> wakeups_{0};
+  std::atomic<std::uint64_t> allocations_{0};
+  RtThread thread_;  // last: starts once the rest is built
+};
+
+}  // namespace wallar::firmware

@@ -1,0 +1,32 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file thread_table.hpp
+/// @brief The thread table: every thread the appliance starts, in one place (name, SCHED_FIFO
+/// priority, CPU, stack, role). Priorities apply only when the appliance runs in real time and
+/// the system permits SCHED_FIFO (else SCHED_OTHER, said once per thread).
+///
+/// Threading: constant data and pure functions; any thread.
+#pragma once
+
+#include <cstddef>
+#include <span>
+
+#include "wallar/firmware/rt_thread.hpp"
+
+namespace wallar::firmware {
+
+struct ThreadTableEntry {
+  const char* name;
+  int priority;  //!< SCHED_FIFO priority in real time; 0: SCHED_OTHER
+  int cpu;       //!< -1: any
+  std::size_t stack_bytes;
+  const char* role;
+};
+
+/// The table, in start order of the sensor side first.
+std::span<const ThreadTableEntry> thread_table();
+/// The entry named `name`; throws std::logic_error for a name the table lacks.
+const ThreadTableEntry& thread_table_entry(const char* name);
+/// The placement of thread `name`: its priority when `realtime`, SCHED_OTHER otherwise.
+ThreadSpec thread_spec(const char* name, bool realtime);
+
+}  // namespace wallar::firmware

@@ -1,0 +1,61 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file live_module.cpp
+/// @brief The capture and imu threads of a live board.
+#include "wallar/firmware/appliance/live_module.hpp"
+
+#include <algorithm>
+#include <limits>
+
+#include "wallar/firmware/appliance/thread_table.hpp"
+
+namespace wallar::firmware {
+
+void LiveModule::start(source::SensorSink& sink, drivers::ImuSampleSink& imu_sink, bool realtime,
+                       const std::atomic<bool>& stop) {
+  // Devices open here, before any thread: a missing one is an error at start.
+  cameras_ = std::make_unique<LiveStereo>(board_, sink);
+  if (board_.imu.driver != "none") imu_ = std::make_unique<LiveImu>(board_, imu_sink);
+  capture_ = std::make_unique<RtThread>(thread_spec("capture", realtime), [this, &stop] {
+    const SetOnExit done(capture_done_);
+    cameras_->run(std::numeric_limits<TimeNs>::max(), stop);
+  });
+  if (imu_) {
+    imu_thread_ = std::make_unique<RtThread>(thread_spec("imu", realtime), [this, &stop] {
+      const SetOnExit done(imu_done_);
+      imu_->run(std::numeric_limits<TimeNs>::max(), stop);
+    });
+  } else {
+    imu_done_.store(true);
+  }
+}
+
+bool LiveModule::join_within(DurationNs timeout_ns) {
+  const TimeNs until = monotonic_now_ns() + timeout_ns;
+  if (capture_ && !wait_flag(capture_done_, until - monotonic_now_ns()) && !capture_->failed())
+    return false;
+  if (imu_thread_ && !wait_flag(imu_done_, std::max<DurationNs>(0, until - monotonic_now_ns())) &&
+      !imu_thread_->failed())
+    return false;
+  if (capture_) capture_->join();
+  if (imu_thread_) imu_thread_->join();
+  return true;
+}
+
+std::string LiveModule::describe() const {
+  return cameras_ ? cameras_->description() + (imu_ ? "; " + imu_->description() : "; no IMU")
+                  : "live sensors";
+}
+
+std::vector<const RtThread*> LiveModule::threads() const {
+  std::vector<const RtThread*> t{capture_.get()};
+  if (imu_thread_) t.push_back(imu_thread_.get());
+  return t;
+}
+
+std::exception_ptr LiveModule::error() const {
+  if (capture_ && capture_->failed()) return capture_->exception();
+  if (imu_thread_ && imu_thread_->failed()) return imu_thread_->exception();
+  return {};
+}
+
+}  // namespace wallar::firmware

@@ -1,0 +1,398 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file supervisor.cpp
+/// @brief run_appliance(): builds the modules and channels from the board, starts their
+/// threads from the table, supervises them, stops them in two phases and writes the report.
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+
+#include "wallar/core/error.hpp"
+#include "wallar/core/seqlock.hpp"
+#include "wallar/core/triple_buffer.hpp"
+#include "wallar/drivers/recording/calibration_files.hpp"
+#include "wallar/drivers/recording/euroc.hpp"
+#include "wallar/firmware/appliance.hpp"
+#include "wallar/firmware/appliance/inputs.hpp"
+#include "wallar/firmware/appliance/live_module.hpp"
+#include "wallar/firmware/appliance/pipeline_sink.hpp"
+#include "wallar/firmware/appliance/reconstruction.hpp"
+#include "wallar/firmware/appliance/replay_module.hpp"
+#include "wallar/firmware/appliance/snapshots.hpp"
+#include "wallar/firmware/appliance/stats.hpp"
+#include "wallar/firmware/appliance/thread_table.hpp"
+#include "wallar/firmware/appliance/tracking_thread.hpp"
+#include "wallar/firmware/offline.hpp"
+#include "wallar/firmware/periodic.hpp"
+#include "wallar/firmware/rt_thread.hpp"
+#include "wallar/firmware/systemd_notify.hpp"
+#include "wallar/firmware/wakeup.hpp"
+#include "wallar/firmware/world_frames.hpp"
+
+namespace wallar::firmware {
+namespace {
+
+void default_log(const std::string& line) { std::fprintf(stderr, "wallar: %s\n", line.c_str()); }
+
+ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& options_in,
+                            const std::atomic<bool>& stop, std::atomic<bool>* stats_request,
+                            const recording::EurocRecording* given);
+
+}  // namespace
+
+const char* to_string(ApplianceMode mode) {
+  switch (mode) {
+    case ApplianceMode::kRealTime:
+      return "real time";
+    case ApplianceMode::kEveryFrame:
+      return "every frame";
+    case ApplianceMode::kLockStep:
+      return "lock step";
+  }
+  return "?";
+}
+
+ApplianceReport run_appliance(const BoardConfig& board, const ApplianceOptions& options,
+                              const std::atomic<bool>& stop, std::atomic<bool>* stats_request) {
+  return run_modules(board, options, stop, stats_request, nullptr);
+}
+
+ApplianceReport run_over_recording(const recording::EurocRecording& rec, const BoardConfig& board,
+                                   const ApplianceOptions& options, const std::atomic<bool>& stop) {
+  if (rec.cams[0].frames.empty() || rec.cams[1].frames.empty()) {
+    throw InputError(rec.mav0.string() + ": the recording has no stereo frames");
+  }
+  BoardConfig replay_board = board;
+  replay_board.source = BoardConfig::Source::kReplay;
+  replay_board.replay.recording = rec.mav0;
+  if (replay_board.name.empty()) replay_board.name = "offline";
+  return run_modules(replay_board, options, stop, nullptr, &rec);
+}
+
+namespace {
+
+ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& options_in,
+                            const std::atomic<bool>& stop, std::atomic<bool>* stats_request,
+                            const recording::EurocRecording* given) {
+  ApplianceOptions options = options_in;
+  if (!options.log) options.log = default_log;
+  const bool replay = board.source == BoardConfig::Source::kReplay;
+  const bool lockstep = options.mode == ApplianceMode::kLockStep;
+  const bool every_frame = options.mode != ApplianceMode::kRealTime;
+  if (!replay && (every_frame || options.replay_plan)) {
+    throw InputError(board.file.string() +
+                     ": --deterministic, --fault and --loop need a replay board");
+  }
+  ApplianceReport report;
+  report.mode = options.mode;
+  const TimeNs t_start = monotonic_now_ns();
+
+  // Everything that can fail on bad input or a missing device, before any thread starts.
+  std::optional<recording::EurocRecording> read;
+  const recording::EurocRecording* rec = given;
+  RigCalibration rig;
+  std::string rig_source;
+  if (replay) {
+    if (rec == nullptr) rec = &read.emplace(recording::read_euroc(board.replay.recording));
+    rig = rec->rig();
+    rig_source = rec->mav0.string();
+  } else {
+    if (!board.calibration) {
+      throw InputError(board.file.string() +
+                       ": a live board needs calibration: (the rig's "
+                       "intrinsics and extrinsics) to track");
+    }
+    rig = recording::read_rig_calibration(*board.calibration);
+    rig_source = board.calibration->string();
+  }
+  // Fixed priorities pace real time; a fast replay runs every thread as SCHED_OTHER.
+  const bool realtime = options.realtime && !(replay && options.replay.rate <= 0.0);
+  if (realtime) {
+    const MemoryLock lock = lock_memory();
+    report.memory_locked = lock.locked;
+    if (!lock.locked) options.log(lock.warning);
+  }
+  Inputs inputs(board, options.input_keys);
+  SystemdNotifier notifier;
+
+  // Channels.
+  std::atomic<bool> stop_modules{false};
+  Wakeup tracking_wakeup;
+  PipelineSink pipeline(tracking_wakeup, stop_modules, every_frame);
+  Seqlock<PoseSnapshot> pose;
+  TripleBuffer<WallModel> walls_channel;
+  TripleBuffer<MapPtr> map_channel;
+
+  // Modules.
+  TrackingThreadOptions tracking;
+  tracking.tracking = tracking_options(board.tracking);
+  if (lockstep) tracking.tracking.mapping_thread = false;
+  tracking.tracking.use_gyro = options.use_gyro;
+  tracking.tracking.mapping_thread_spec = thread_spec("mapping", realtime);
+  tracking.tracking.map_channel = &map_channel;
+  tracking.every_frame = every_frame;
+  tracking.camera_timeout_ns = options.camera_timeout_ns;
+  tracking.imu_timeout_ns = options.imu_timeout_ns;
+  tracking.max_records = options.max_records;
+  tracking.log = options.log;
+  ReconstructionOptions reconstruction_options;
+  reconstruction_options.method = options.wall_method;
+  reconstruction_options.threshold_m = options.wall_threshold_m;
+  reconstruction_options.max_surfaces = options.max_surfaces;
+  reconstruction_options.regrow_fraction = options.regrow_fraction;
+  reconstruction_options.min_map_points = options.min_map_points;
+  reconstruction_options.seed = options.seed;
+  reconstruction_options.period_ns = options.reconstruct_period_ns;
+  Reconstruction reconstruction(reconstruction_options,
+                                static_cast<std::size_t>(board.tracking.max_map_points),
+                                walls_channel);
+  std::unique_ptr<TrackingThread> tracker;
+  try {
+    tracker = std::make_unique<TrackingThread>(rig, tracking, pipeline, tracking_wakeup, pose,
+                                               nullptr, lockstep ? &reconstruction : nullptr);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(rig_source + ": calibration: " + e.what());
+  }
+  report.T_body_rect = tracker->system().tracker().T_body_rect();
+  std::unique_ptr<LiveView> view;
+  if (options.view) {
+    HeadsetViewOptions vo = view_options(board.display);
+    vo.png_dir = options.png_dir;
+    vo.png_every = options.png_dir.empty() ? 0 : std::max(1, options.png_every);
+    // Given walls are in the first body pose's world; the view draws in the tracker's.
+    WallModel walls = options.view_walls
+                          ? transformed(*options.view_walls, report.T_body_rect.inverse())
+                          : WallModel{};
+    view = std::make_unique<LiveView>(rig, vo, std::move(walls), rig.cams[0].rate_hz,
+                                      options.view_walls ? nullptr : &walls_channel,
+                                      thread_spec("render", realtime));
+    report.display = view->display();
+    tracker->set_view(view.get());
+  }
+  std::unique_ptr<SourceModule> source;
+  ReplayModule* replay_module = nullptr;
+  if (replay) {
+    auto r = std::make_unique<ReplayModule>(
+        *rec, options.replay, options.replay_plan ? options.replay_plan(*rec) : nullptr);
+    replay_module = r.get();
+    source = std::move(r);
+  } else {
+    source = std::make_unique<LiveModule>(board);
+  }
+
+  // Threads, consumers first so nothing produced is lost.
+  std::atomic<std::uint64_t> tracking_allocs{0}, supervisor_allocs{0};
+  RtThread tracking_thread(thread_spec("tracking", realtime),
+                           [&] { tracker->run(stop_modules, &tracking_allocs); });
+  std::unique_ptr<ReconstructionThread> reconstruct_thread;
+  if (!lockstep) {
+    reconstruct_thread = std::make_unique<ReconstructionThread>(
+        reconstruction, map_channel, pose, options.reconstruct_period_ns,
+        thread_spec("reconstruct", realtime), stop_modules);
+  }
+  try {
+    source->start(pipeline, pipeline, realtime, stop_modules);  // live: opens the devices
+  } catch (...) {
+    // The consumers already run: stop them before unwinding joins them.
+    stop_modules.store(true, std::memory_order_release);
+    tracking_wakeup.notify();
+    throw;
+  }
+  report.source = source->describe();
+  {
+    char line[700];
+    std::snprintf(line, sizeof line, "board %s: %s; display %s; inputs %s%s%s", board.name.c_str(),
+                  report.source.c_str(), view ? report.display.c_str() : "none",
+                  inputs.describe().c_str(), options.mode == ApplianceMode::kRealTime ? "" : "; ",
+                  options.mode == ApplianceMode::kRealTime ? "" : to_string(options.mode));
+    options.log(line);
+  }
+  {
+    // Placement fallbacks (no SCHED_FIFO, a missing CPU), said once per thread at start.
+    std::vector<const RtThread*> started = source->threads();
+    started.push_back(&tracking_thread);
+    if (reconstruct_thread) started.push_back(&reconstruct_thread->thread());
+    started.push_back(tracker->system().mapping_thread());
+    if (view) started.push_back(view->thread());
+    for (const RtThread* t : started) {
+      if (t != nullptr && !t->placement().fallback.empty()) {
+        options.log("thread " + t->spec().name + ": " + t->placement().fallback);
+      }
+    }
+  }
+  notifier.ready();
+  notifier.status("running");
+
+  // Supervisor.
+  // `final`: after the tracking thread stopped (the mapping thread may be replaced by a reset
+  // while it runs, so only the final table lists it).
+  auto live_rows = [&](DurationNs run_ns, bool final) {
+    std::vector<ThreadRow> threads;
+    for (const RtThread* t : source->threads()) {
+      if (t != nullptr) threads.push_back(row_of(*t, run_ns, 0, 0, nullptr));
+    }
+    threads.push_back(
+        row_of(tracking_thread, run_ns, tracker->wakeups(), tracker->misses(), &tracking_allocs));
+    if (const RtThread* m = final ? tracker->system().mapping_thread() : nullptr) {
+      threads.push_back(row_of(*m, run_ns, 0, 0, nullptr));
+    }
+    if (reconstruct_thread) {
+      threads.push_back(row_of(reconstruct_thread->thread(), run_ns, reconstruct_thread->wakeups(),
+                               reconstruct_thread->misses(), &reconstruct_thread->allocations()));
+    }
+    if (view) {
+      if (const RtThread* r = view->thread()) {
+        threads.push_back(row_of(*r, run_ns, view->attempts(), view->misses(), nullptr));
+      }
+    }
+    return threads;
+  };
+  const DurationNs frame_period = tracker->frame_period_ns();
+  auto stage_rows = [&] {
+    std::vector<StageRow> stages;
+    stages.push_back(stage_row("imu -> filter", tracker->imu_latency(), 0, 0));
+    stages.push_back(stage_row("capture -> tracking", tracker->queue_latency(), 0, 0));
+    stages.push_back(stage_row("tracking", tracker->track_time(), frame_period, tracker->misses()));
+    stages.push_back(stage_row("reconstruction", reconstruction.time(), 0, 0));
+    if (view) {
+      stages.push_back(stage_row("render", view->render_time(), frame_period, view->misses()));
+      stages.push_back(stage_row("camera -> display", view->latency(), 0, 0));
+    }
+    return stages;
+  };
+
+  report.rss_kb.reserve(1 << 16);
+  TimeNs next_rss_ns = t_start;
+  PeriodicTimer supervisor(options.supervisor_period_ns);
+  std::uint64_t supervisor_wakeups = 0;
+  bool tracking_stalled = false;
+  std::string tracking_error;
+  std::exception_ptr source_error;
+  tl_allocation_counter = &supervisor_allocs;
+  for (;;) {
+    supervisor.wait();
+    ++supervisor_wakeups;
+    const TimeNs now = monotonic_now_ns();
+    if (now >= next_rss_ns && report.rss_kb.size() < report.rss_kb.capacity()) {
+      report.rss_kb.push_back(current_rss_kb());
+      next_rss_ns = now + options.rss_sample_period_ns;
+    }
+    if (stop.load(std::memory_order_acquire)) {
+      report.stop_reason = "signal";
+      report.interrupted = true;
+      break;
+    }
+    if (options.max_duration_ns > 0 && now - t_start >= options.max_duration_ns) {
+      report.stop_reason = "time limit";
+      break;
+    }
+    if (tracking_thread.failed()) {
+      tracking_error = "tracking: " + tracking_thread.error();
+      break;
+    }
+    if (std::exception_ptr e = source->error()) {
+      source_error = e;
+      break;
+    }
+    if (source->finished() && pipeline.drained()) {
+      report.stop_reason = replay ? "end of replay" : "sensors stopped";
+      break;
+    }
+    switch (inputs.poll(now)) {
+      case drivers::InputAction::kExit:
+        report.stop_reason = "exit input";
+        report.interrupted = true;
+        break;
+      case drivers::InputAction::kReset:
+        tracker->request_reset();
+        [[fallthrough]];
+      case drivers::InputAction::kNone:
+        break;
+    }
+    if (report.interrupted) break;
+    if (stats_request != nullptr && stats_request->exchange(false)) {
+      tl_allocation_counter = nullptr;  // a request, not the fixed-rate path
+      const std::string table = format_stats_table(live_rows(now - t_start, false), stage_rows());
+      std::fprintf(stderr, "%s", table.c_str());
+      tl_allocation_counter = &supervisor_allocs;
+    }
+    // Health: tracking wakes at least every 10 ms; two seconds of silence is a hang.
+    const bool stalled = now - tracker->heartbeat_ns() > 2 * kNsPerS;
+    if (stalled != tracking_stalled) {
+      tracking_stalled = stalled;
+      tl_allocation_counter = nullptr;
+      options.log(stalled ? "tracking thread stalled (no heartbeat for 2 s): watchdog withheld"
+                          : "tracking thread alive again");
+      tl_allocation_counter = &supervisor_allocs;
+    }
+    if (!stalled && notifier.watchdog_due(now)) notifier.watchdog(now);
+  }
+  tl_allocation_counter = nullptr;
+  notifier.stopping();
+
+  // Phase one: break the links. Producers stop producing, waits are released.
+  stop_modules.store(true, std::memory_order_release);
+  tracking_wakeup.notify();
+  pipeline.release_producers();
+  // Phase two: join and destroy, source first (it may be inside a device call).
+  if (!source->join_within(3 * kNsPerS)) {
+    options.log("the source did not stop within 3 s (stuck in a device call): exiting without it");
+    std::fflush(nullptr);
+    std::_Exit(1);
+  }
+  // A source that failed while the supervisor saw it finish: its error still counts.
+  if (!source_error) source_error = source->error();
+  tracking_thread.join();
+  if (reconstruct_thread) reconstruct_thread->join();
+  const DurationNs run_ns = monotonic_now_ns() - t_start;
+  report.threads = live_rows(run_ns, true);
+  ThreadRow sup;
+  sup.name = "supervisor";
+  sup.policy = "OTHER";
+  sup.wakeups = supervisor_wakeups;
+  sup.misses = supervisor.misses();
+  if (g_allocations_counted) sup.allocations = supervisor_allocs.load();
+  sup.note = thread_table_entry("supervisor").role;
+  report.threads.push_back(sup);
+  // The final map (mapping stopped after a global adjustment) and its walls.
+  const MapPtr final_map = tracker->finish();
+  if (final_map) {
+    report.map = final_map;
+    report.map_points = final_map->points.size();
+    report.map_keyframes = final_map->keyframe_centres.size();
+    const PoseSnapshot p = pose.load();
+    reconstruction.maybe_run(*final_map, down_of(p), p.epoch, true);
+  }
+  if (view) report.view = view->stop();
+  report.stages = stage_rows();
+  report.mapping_times_ns = tracker->system().mapping_times_ns();
+  LatencyHistogram mapping;
+  for (const std::int64_t ns : report.mapping_times_ns) mapping.record(ns);
+  report.stages.insert(report.stages.begin() + 3, stage_row("mapping (local BA)", mapping, 0, 0));
+  if (source_error) std::rethrow_exception(source_error);  // e.g. the replay's InputError
+  if (!tracking_error.empty()) throw std::runtime_error(tracking_error);
+
+  report.room = reconstruction.result();
+  report.room_gravity = reconstruction.gravity();
+  report.reconstructions = reconstruction.runs();
+  report.tracking = tracker->system().counters();
+  report.degraded = tracker->degraded();
+  report.trajectory = tracker->records();
+  report.events = tracker->events();
+  report.imu = tracker->imu_seen();
+  report.imu_samples = pipeline.imu_in();
+  report.imu_dropped = pipeline.imu_dropped();
+  report.frames_in = pipeline.frames_in();
+  report.frames_overwritten = pipeline.frames_overwritten();
+  report.frames_tracked = tracker->tracked();
+  if (replay_module != nullptr) {
+    report.replay = replay_module->stats();
+    report.loops_played = replay_module->loops_played();
+    report.degraded.faults_injected = replay_module->injected();
+  }
+  report.wall_time_ns = run_ns;
+  report.max_rss_kb = max_rss_kb();
+  return report;
+}
+
+}  // namespace
+}  // namespace wallar::firmware

@@ -1,0 +1,48 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file thread_table.cpp
+/// @brief The appliance's thread table.
+#include "wallar/firmware/appliance/thread_table.hpp"
+
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
+namespace wallar::firmware {
+namespace {
+
+// The renderer stays SCHED_OTHER: Mesa's llvmpipe starts worker threads that would inherit a
+// real-time policy and starve the rest on a small board.
+constexpr std::size_t kMiB = 1024 * 1024;
+constexpr ThreadTableEntry kThreadTable[] = {
+    {"imu", 80, -1, 1 * kMiB, "IMU driver: FIFO, time stamps"},
+    {"capture", 70, -1, 1 * kMiB, "V4L2 capture and stereo pairing"},
+    {"replay", 70, -1, 2 * kMiB, "recording played as the sensors"},
+    {"tracking", 60, -1, 4 * kMiB, "IMU filter, tracker, degraded modes"},
+    {"mapping", 0, -1, 8 * kMiB, "key-frames, bundle adjustment"},
+    {"reconstruct", 0, -1, 4 * kMiB, "walls, floor, ceiling"},
+    {"render", 0, -1, 4 * kMiB, "headset view (EGL)"},
+    {"supervisor", 0, -1, 0, "health, stop, stats, watchdog (main thread)"},
+};
+
+}  // namespace
+
+std::span<const ThreadTableEntry> thread_table() { return kThreadTable; }
+
+const ThreadTableEntry& thread_table_entry(const char* name) {
+  for (const ThreadTableEntry& e : kThreadTable) {
+    if (std::string_view(e.name) == name) return e;
+  }
+  throw std::logic_error(std::string("thread table has no ") + name);
+}
+
+ThreadSpec thread_spec(const char* name, bool realtime) {
+  const ThreadTableEntry& e = thread_table_entry(name);
+  ThreadSpec s;
+  s.name = e.name;
+  s.priority = realtime ? e.priority : 0;
+  s.cpu = e.cpu;
+  s.stack_bytes = e.stack_bytes;
+  return s;
+}
+
+}  // namespace wallar::firmware
