@@ -1,22 +1,31 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file test_synthetic_motion.cpp
-/// @brief The synthetic moving headset (dsp/tracking/synthetic_motion.hpp): the IMU integrates
-/// back to the trajectory, the presets move as asked (turn peaks, walking speed, repeating laps),
-/// the noise has the densities' statistics, blur, rolling shutter and gain steps do what they
-/// model.
+/// @brief The synthetic moving headset (dsp/tracking/synthetic_motion.hpp) and its recording
+/// (tools/eval/synth_rig.hpp): the IMU integrates back to the trajectory, the presets move as
+/// asked (turn peaks, walking speed, repeating laps), the noise has the densities' statistics,
+/// blur, rolling shutter and gain steps do what they model, the time offset shows between the IMU
+/// and the ground truth, and the same seed writes the same bytes.
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <map>
 #include <numeric>
 #include <string>
 #include <vector>
 
+#include "test_support.hpp"
+#include "wallar/drivers/config/yaml.hpp"
+#include "wallar/drivers/recording/euroc.hpp"
 #include "wallar/dsp/tracking/synthetic_motion.hpp"
+#include "wallar/eval/synth_rig.hpp"
 
 namespace wallar::dsp {
 namespace {
 
+using test::TempDir;
+namespace fs = std::filesystem;
 constexpr double kDeg = M_PI / 180.0;
 
 HeadMotionModel model_of(HeadMotion motion, std::uint64_t seed = 1, double peak = 300.0) {
@@ -447,6 +456,185 @@ TEST(SyntheticImaging, PixelNoiseHasTheModelledSigma) {
   const Frame c = form(model, cam, 0.5, noisy, 1.0, 4);
   EXPECT_NE(b.left, c.left);
   EXPECT_EQ(b.left, form(model, cam, 0.5, noisy, 1.0, 3).left);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The recording
+
+eval::SynthRigOptions small_options() {
+  eval::SynthRigOptions o;
+  o.motion = HeadMotion::kQuickTurns;
+  o.duration_s = 4.0;
+  o.width_px = 160;
+  o.height_px = 120;
+  o.imu_rate_hz = 1000.0;
+  o.time_offset_ms = 7.0;
+  o.rolling_shutter_ms = 10.0;
+  o.gain_steps = true;
+  o.seed = 11;
+  return o;
+}
+
+std::map<std::string, std::string> files_under(const fs::path& root) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : fs::recursive_directory_iterator(root)) {
+    if (e.is_regular_file()) files[fs::relative(e.path(), root).string()] = test::slurp(e.path());
+  }
+  return files;
+}
+
+TEST(SynthRigRecording, SameSeedWritesTheSameBytes) {
+  TempDir tmp;
+  const std::atomic<bool> stop{false};
+  const eval::SynthRigOptions o = small_options();
+  eval::write_synth_rig(o, tmp.path() / "a", stop);
+  eval::write_synth_rig(o, tmp.path() / "b", stop);
+  eval::SynthRigOptions other = o;
+  other.seed = 12;
+  eval::write_synth_rig(other, tmp.path() / "c", stop);
+  const auto a = files_under(tmp.path() / "a");
+  const auto b = files_under(tmp.path() / "b");
+  const auto c = files_under(tmp.path() / "c");
+  EXPECT_GT(a.size(), 2u * 80u + 10u);  // 80 PNGs per camera and the rest
+  EXPECT_TRUE(a == b) << "same options and seed, different files";
+  EXPECT_NE(a.at("mav0/cam0/data/1700000000000000000.png"),
+            c.at("mav0/cam0/data/1700000000000000000.png"));
+  EXPECT_NE(a.at("mav0/imu0/data.csv"), c.at("mav0/imu0/data.csv"));
+  EXPECT_FALSE(fs::exists(tmp.path() / "a.part"));
+}
+
+TEST(SynthRigRecording, ReadsBackWithTheTimeOffsetBetweenImuAndGroundTruth) {
+  TempDir tmp;
+  const std::atomic<bool> stop{false};
+  const eval::SynthRigOptions o = small_options();
+  const nlohmann::json summary = eval::write_synth_rig(o, tmp.path() / "rec", stop);
+  const recording::EurocRecording rec = recording::read_euroc(tmp.path() / "rec");
+  ASSERT_EQ(rec.cams[0].frames.size(), 80u);
+  ASSERT_EQ(rec.cams[1].frames.size(), 80u);
+  EXPECT_EQ(rec.cams[0].frames[1].t_ns - rec.cams[0].frames[0].t_ns, 50'000'000);
+  EXPECT_EQ(rec.cams[0].calib.width_px, 160);
+  EXPECT_DOUBLE_EQ(rec.cams[0].calib.fx, 450.0 * 160 / 640);
+  EXPECT_NEAR(rec.rig().T_cam0_cam1().translation().norm(), 0.10, 1e-12);
+  // T_cam_imu: the axis permutation of a forward-looking camera, turned by a mounting error.
+  Eigen::Matrix3d R_cam_imu_nominal;
+  R_cam_imu_nominal << 0, -1, 0, 0, 0, -1, 1, 0, 0;
+  const double mounting = angle_between(rec.rig().T_cam0_imu().linear(), R_cam_imu_nominal);
+  EXPECT_GT(mounting, 0.5 * kDeg);
+  EXPECT_LT(mounting, 2.0 * kDeg);
+  EXPECT_GT(rec.rig().T_cam0_imu().translation().norm(), 0.02);  // the IMU is cm from cam0
+  EXPECT_DOUBLE_EQ(rec.imu_calib.rate_hz, 1000.0);
+  EXPECT_DOUBLE_EQ(rec.imu_calib.gyro_noise_density, default_headset_rig().imu.gyro_noise_density);
+  EXPECT_DOUBLE_EQ(rec.imu_calib.accel_random_walk, default_headset_rig().imu.accel_random_walk);
+  const Image img =
+      recording::load_png_gray(rec.cams[1].image_path(rec.cams[1].frames[30]), 160, 120);
+  EXPECT_EQ(img.width(), 160);
+
+  // Ground truth at the IMU's sample times; the IMU's stamps are 7 ms ahead of them.
+  ASSERT_EQ(rec.ground_truth.size(), rec.imu.size());
+  EXPECT_EQ(summary["imu_clock_offset_ns"].get<std::int64_t>(), 7'000'000);
+  for (std::size_t i = 0; i < rec.imu.size(); ++i) {
+    ASSERT_EQ(rec.imu[i].t_ns - rec.ground_truth[i].t_ns, 7'000'000) << i;
+  }
+  // The IMU spans the frames (and starts 0.5 s before them, still).
+  EXPECT_LE(rec.ground_truth.front().t_ns, rec.cams[0].frames.front().t_ns - 400'000'000);
+  EXPECT_GE(rec.ground_truth.back().t_ns, rec.cams[0].frames.back().t_ns);
+  // And the offset is in the data, not only the stamps: the gyro's magnitude matches the truth's
+  // angular rate best when shifted by 7 samples (7 ms at 1 kHz).
+  std::vector<double> gyro, truth;
+  for (std::size_t i = 0; i < rec.imu.size(); ++i) gyro.push_back(rec.imu[i].gyro_rad_s.norm());
+  for (std::size_t i = 1; i + 1 < rec.ground_truth.size(); ++i) {
+    const Eigen::AngleAxisd d(rec.ground_truth[i - 1].T_world_body.linear().transpose() *
+                              rec.ground_truth[i + 1].T_world_body.linear());
+    truth.push_back(d.angle() / 2e-3);
+  }
+  // truth[i] is at ground_truth[i + 1]; compare with the IMU row stamped that time + lag.
+  int best_lag = -100;
+  double best = 1e18;
+  for (int lag = -20; lag <= 20; ++lag) {
+    double err = 0.0;
+    for (std::size_t i = 30; i + 30 < truth.size(); ++i) {
+      // The IMU row whose stamp is ground_truth[i + 1].t_ns + lag ms.
+      const std::ptrdiff_t j = static_cast<std::ptrdiff_t>(i + 1) + lag - 7;
+      const double e = gyro[static_cast<std::size_t>(j)] - truth[i];
+      err += e * e;
+    }
+    if (err < best) {
+      best = err;
+      best_lag = lag;
+    }
+  }
+  EXPECT_EQ(best_lag, 7) << "the IMU's clock is 7 ms ahead of the ground truth's";
+
+  // Where a calibration carries it, and in the ground truth's own files.
+  const auto camchain =
+      config::YamlDocument::load_file(tmp.path() / "rec" / "mav0" / "camchain-imucam.yaml");
+  EXPECT_DOUBLE_EQ(camchain.root().at("cam0").at("timeshift_cam_imu").as_double(), 0.007);
+  EXPECT_DOUBLE_EQ(camchain.root().at("cam1").at("timeshift_cam_imu").as_double(), 0.007);
+  const Eigen::MatrixXd T_cam_imu = camchain.root().at("cam0").at("T_cam_imu").as_matrix(4, 4);
+  EXPECT_LT((T_cam_imu - rec.rig().T_cam0_imu().matrix()).cwiseAbs().maxCoeff(), 1e-12);
+  const fs::path gt_dir = tmp.path() / "rec" / "mav0" / "state_groundtruth_estimate0";
+  const auto gt_yaml = config::YamlDocument::load_file(gt_dir / "sensor.yaml");
+  EXPECT_EQ(gt_yaml.root().at("imu_clock_offset_ns").as_double(), 7e6);
+  EXPECT_EQ(gt_yaml.root().get_string("motion", ""), "quick-turns");
+  EXPECT_NE(test::slurp(gt_dir / "README.md").find("7000000 ns ahead"), std::string::npos);
+  // camera_frames.csv: one row per frame with the gain that frame got.
+  const std::string frames_csv = test::slurp(gt_dir / "camera_frames.csv");
+  EXPECT_EQ(std::count(frames_csv.begin(), frames_csv.end(), '\n'), 81);
+}
+
+TEST(SynthRigRecording, GroundTruthAtCameraRateAndBadOptions) {
+  TempDir tmp;
+  const std::atomic<bool> stop{false};
+  eval::SynthRigOptions o = small_options();
+  o.ground_truth_at_camera_rate = true;
+  o.duration_s = 1.0;
+  eval::write_synth_rig(o, tmp.path() / "cam_rate", stop);
+  const recording::EurocRecording rec = recording::read_euroc(tmp.path() / "cam_rate");
+  ASSERT_EQ(rec.ground_truth.size(), rec.cams[0].frames.size());
+  for (std::size_t i = 0; i < rec.ground_truth.size(); ++i) {
+    EXPECT_EQ(rec.ground_truth[i].t_ns, rec.cams[0].frames[i].t_ns);
+  }
+  // The row round trip: what format_ground_truth_row writes, parse reads back exactly.
+  const std::string text = std::string(recording::ground_truth_csv_header()) +
+                           recording::format_ground_truth_row(rec.ground_truth[3]);
+  const auto back = recording::parse_ground_truth_csv(text, "row");
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0].T_world_body.translation(), rec.ground_truth[3].T_world_body.translation());
+  EXPECT_EQ(back[0].vel_world_m_s, rec.ground_truth[3].vel_world_m_s);
+
+  const auto rejects = [&](auto edit, const std::string& option) {
+    eval::SynthRigOptions bad = small_options();
+    edit(bad);
+    try {
+      eval::check_synth_rig_options(bad);
+      ADD_FAILURE() << option << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(option + ": ", 0), 0u) << e.what();
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
+    }
+  };
+  rejects([](auto& b) { b.imu_rate_hz = 100.0; }, "--imu-rate");
+  rejects([](auto& b) { b.imu_rate_hz = 2000.0; }, "--imu-rate");
+  rejects([](auto& b) { b.exposure_ms = 60.0; }, "--blur");
+  rejects([](auto& b) { b.rolling_shutter_ms = -1.0; }, "--rolling-shutter");
+  rejects([](auto& b) { b.duration_s = 0.0; }, "--duration");
+  rejects([](auto& b) { b.camera_rate_hz = 500.0; }, "--camera-rate");
+  rejects([](auto& b) { b.noise_sigma = -1.0; }, "--noise");
+  rejects([](auto& b) { b.peak_turn_deg_s = 5000.0; }, "--peak-turn-deg-s");
+  rejects([](auto& b) { b.width_px = 10; }, "--width");
+  rejects([](auto& b) { b.time_offset_ms = 5000.0; }, "--time-offset-ms");
+  // An existing, non-empty output is left alone.
+  fs::create_directories(tmp.path() / "full");
+  test::spit(tmp.path() / "full" / "keep.txt", "mine");
+  EXPECT_THROW(eval::write_synth_rig(small_options(), tmp.path() / "full", stop), InputError);
+  EXPECT_EQ(test::slurp(tmp.path() / "full" / "keep.txt"), "mine");
+  EXPECT_FALSE(fs::exists(tmp.path() / "full.part"));
+  // Interrupted: nothing left behind.
+  const std::atomic<bool> stopped{true};
+  const nlohmann::json j = eval::write_synth_rig(small_options(), tmp.path() / "stopped", stopped);
+  EXPECT_TRUE(j.value("interrupted", false));
+  EXPECT_FALSE(fs::exists(tmp.path() / "stopped"));
+  EXPECT_FALSE(fs::exists(tmp.path() / "stopped.part"));
 }
 
 }  // namespace
