@@ -274,6 +274,7 @@ void add_eval_command(CLI::App& app, std::function<int()>& run) {
   l->callback([all, &run] { run = [all] { return run_all_command(*all); }; });
   add_eval_real_command(*eval, run);
   add_eval_marker_command(*eval, run);
+  add_eval_synth_rig_command(*eval, run);
 }
 
 }  // namespace wallar::cli

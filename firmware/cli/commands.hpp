@@ -41,6 +41,8 @@ void add_calibrate_stereo_commands(CLI::App& calibrate, std::function<int()>& ru
 void add_eval_real_command(CLI::App& eval, std::function<int()>& run);
 /// `wallar eval marker`, added to the `eval` subcommand.
 void add_eval_marker_command(CLI::App& eval, std::function<int()>& run);
+/// `wallar eval synth-rig`, added to the `eval` subcommand.
+void add_eval_synth_rig_command(CLI::App& eval, std::function<int()>& run);
 
 }  // namespace wallar::cli
 

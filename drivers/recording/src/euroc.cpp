@@ -134,6 +134,31 @@ std::vector<GroundTruthState> parse_ground_truth_csv(std::string_view text,
   return states;
 }
 
+std::string_view ground_truth_csv_header() {
+  return "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], "
+         "q_RS_z [], v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], "
+         "b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad s^-1], b_w_RS_S_z [rad s^-1], "
+         "b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]\n";
+}
+
+std::string format_ground_truth_row(const GroundTruthState& g) {
+  Eigen::Quaterniond q(g.T_world_body.linear());
+  if (q.w() < 0.0) q.coeffs() = -q.coeffs();
+  const Eigen::Vector3d& p = g.T_world_body.translation();
+  std::string row = std::to_string(g.t_ns);
+  const auto add = [&row](double v) {
+    row += ',';
+    row += format_euroc_double(v);
+  };
+  for (int i = 0; i < 3; ++i) add(p[i]);
+  for (const double v : {q.w(), q.x(), q.y(), q.z()}) add(v);
+  for (const Eigen::Vector3d* v : {&g.vel_world_m_s, &g.gyro_bias_rad_s, &g.accel_bias_m_s2}) {
+    for (int i = 0; i < 3; ++i) add((*v)[i]);
+  }
+  row += '\n';
+  return row;
+}
+
 namespace detail {
 
 SE3d read_rigid(const config::YamlNode& node) {
@@ -388,7 +413,9 @@ void write_imu_sensor_yaml(const fs::path& path, const ImuCalibration& c) {
   write_text_file(path, s.str());
 }
 
-EurocWriter::EurocWriter(const fs::path& root, const RigCalibration& rig) : mav0_(root / "mav0") {
+EurocWriter::EurocWriter(const fs::path& root, const RigCalibration& rig,
+                         const EurocWriterOptions& options)
+    : mav0_(root / "mav0"), options_(options) {
   std::error_code ec;
   for (const char* sub : {"cam0/data", "cam1/data", "imu0"}) {
     fs::create_directories(mav0_ / sub, ec);
@@ -433,7 +460,7 @@ void EurocWriter::write_camera(int cam, const CameraFrame& frame) {
   const fs::path dir = mav0_ / ("cam" + std::to_string(cam));
   const std::string name = std::to_string(frame.t_ns) + ".png";
   const fs::path tmp = dir / "data" / (name + ".part");
-  save_png_gray(tmp, frame.image);
+  save_png_gray(tmp, frame.image, options_.fast_png);
   std::error_code ec;
   fs::rename(tmp, dir / "data" / name, ec);
   if (ec) throw_input_error(tmp.string(), 0, "cannot rename: " + ec.message());

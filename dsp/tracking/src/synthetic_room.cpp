@@ -31,16 +31,18 @@ std::uint64_t cell_hash(std::uint64_t key, std::int64_t i, std::int64_t j) {
 // 53 bits of h -> [0, 1).
 double unit(std::uint64_t h) { return static_cast<double>(h >> 11) * 0x1.0p-53; }
 
-// floor() for the texture's cell indices, without the libm call (|x| is far below 2^62).
-std::int64_t floor_i(double x) {
-  const auto i = static_cast<std::int64_t>(x);
-  return static_cast<double>(i) > x ? i - 1 : i;
-}
+// floor() for the texture's cell indices (|x| is far below 2^62); std::floor compiles to one
+// rounding instruction on both targets (SSE4.1 roundsd, A64 frintm), cheaper than a compare.
+std::int64_t floor_i(double x) { return static_cast<std::int64_t>(std::floor(x)); }
 
 // Shape layers, painted from the largest cells to the smallest: each cell of a layer holds at
 // most one rectangle or disc inside the cell, so a point needs one lookup per layer.
 constexpr std::size_t kLayers = 3;
 constexpr std::array<double, kLayers> kCellM = {0.5, 0.25, 0.13};
+// 1 / kCellM, folded at compile time (the same doubles a run-time division gives): the texture
+// is sampled several times per pixel and a division per sample and layer showed in profiles.
+constexpr std::array<double, kLayers> kInvCellM = {1.0 / kCellM[0], 1.0 / kCellM[1],
+                                                   1.0 / kCellM[2]};
 constexpr std::array<double, kLayers> kShapeProbability = {0.6, 0.5, 0.4};
 
 std::uint64_t surface_key(std::uint64_t seed, int surface) {
@@ -96,6 +98,7 @@ double lattice(std::uint64_t key, std::int64_t i, std::int64_t j) {
 }
 
 constexpr std::array<double, 2> kNoiseCellM = {0.1, 0.035};
+constexpr std::array<double, 2> kInvNoiseCellM = {1.0 / kNoiseCellM[0], 1.0 / kNoiseCellM[1]};
 constexpr std::array<double, 2> kNoiseAmplitude = {16.0, 7.0};
 constexpr std::array<std::uint64_t, 2> kNoiseSalt = {0xA1ULL, 0xB2ULL};
 
@@ -117,7 +120,7 @@ class TextureSampler {
     // Smaller shapes are painted over larger ones: the first (smallest) layer whose shape
     // contains the point decides.
     for (std::size_t layer = kLayers; layer-- > 0;) {
-      const double gs = s * (1.0 / kCellM[layer]), gt = t * (1.0 / kCellM[layer]);
+      const double gs = s * kInvCellM[layer], gt = t * kInvCellM[layer];
       const std::int64_t i = floor_i(gs), j = floor_i(gt);
       ShapeEntry& e = shape_cache_[layer];
       if (e.surface != surface || e.i != i || e.j != j) {
@@ -136,7 +139,7 @@ class TextureSampler {
     const auto k = static_cast<std::size_t>(surface);
     double value = 0.0;
     for (std::size_t o = 0; o < kNoiseCellM.size(); ++o) {
-      const double x = s * (1.0 / kNoiseCellM[o]), y = t * (1.0 / kNoiseCellM[o]);
+      const double x = s * kInvNoiseCellM[o], y = t * kInvNoiseCellM[o];
       const std::int64_t i = floor_i(x), j = floor_i(y);
       NoiseEntry& e = noise_cache_[o];
       if (e.surface != surface || e.i != i || e.j != j) {
@@ -261,30 +264,36 @@ double room_texture(const SyntheticRoom& room, RoomFace surface, double s_m, dou
   return sampler.shapes(k, s_m, t_m) + sampler.noise(k, s_m, t_m);
 }
 
-void render_room(const SyntheticRoom& room, const SyntheticCamera& camera, const SE3d& T_world_cam,
-                 int cam, std::span<std::uint8_t> out) {
+namespace {
+
+void check_render_args(const char* what, const SyntheticCamera& camera, int cam,
+                       std::size_t out_size) {
   if (cam != 0 && cam != 1) {
-    throw std::invalid_argument("render_room: cam must be 0 (left) or 1 (right), got " +
+    throw std::invalid_argument(std::string(what) + ": cam must be 0 (left) or 1 (right), got " +
                                 std::to_string(cam));
   }
   if (camera.width_px <= 0 || camera.height_px <= 0 || !(camera.f_px > 0) ||
       camera.samples_per_axis < 1 || camera.samples_per_axis > 16) {
-    throw std::invalid_argument("render_room: camera needs width, height, f > 0 and 1-16 samples");
+    throw std::invalid_argument(std::string(what) +
+                                ": camera needs width, height, f > 0 and 1-16 samples");
   }
+  const std::size_t n =
+      static_cast<std::size_t>(camera.width_px) * static_cast<std::size_t>(camera.height_px);
+  if (out_size != n) {
+    throw std::invalid_argument(std::string(what) + ": out has " + std::to_string(out_size) +
+                                " pixels, the image needs " + std::to_string(n));
+  }
+}
+
+// Casts every pixel of rows [0, height) with the pose pose_of_row(v) and hands the unrounded
+// gray value to sink(index, value); rows whose camera centre is outside the room are skipped
+// (outside(v) is called for them instead).
+template <typename PoseOfRow, typename Sink, typename Outside>
+void render_rows(const SyntheticRoom& room, const SyntheticCamera& camera, int cam,
+                 PoseOfRow&& pose_of_row, Sink&& sink, Outside&& outside) {
   const std::size_t w = static_cast<std::size_t>(camera.width_px);
   const std::size_t h = static_cast<std::size_t>(camera.height_px);
-  if (out.size() != w * h) {
-    throw std::invalid_argument("render_room: out has " + std::to_string(out.size()) +
-                                " bytes, the image needs " + std::to_string(w * h));
-  }
   const Box box = box_of(room);
-  const Eigen::Matrix3d R = T_world_cam.linear();
-  const Eigen::Vector3d o =
-      T_world_cam * Eigen::Vector3d(cam == 1 ? camera.baseline_m : 0.0, 0.0, 0.0);
-  if (!inside(box, o)) {
-    std::fill(out.begin(), out.end(), std::uint8_t{0});
-    return;
-  }
   TextureSampler sampler(room.texture_seed);
 
   const int n = camera.samples_per_axis;
@@ -297,16 +306,74 @@ void render_room(const SyntheticRoom& room, const SyntheticCamera& camera, const
   for (std::size_t k = 0; k < offset.size(); ++k) {
     offset[k] = (static_cast<double>(k) + 0.5) / static_cast<double>(n * n) - 0.5;
   }
-  // Ray direction of (u, v) = R * ((u - cx)/f, (v - cy)/f, 1) = c0 + u*du + v*dv.
-  const Eigen::Vector3d du = R.col(0) * inv_f;
-  const Eigen::Vector3d dv = R.col(1) * inv_f;
-  const Eigen::Vector3d c0 = R.col(2) - camera.cx_px * du - camera.cy_px * dv;
+  // Adaptive supersampling: the shapes at the pixel corners of the rows above (top) and below
+  // (bottom) the current one; NaN where a corner ray leaves no hit (never equal).
+  const bool adaptive = camera.adaptive && n > 1;
+  std::vector<double> top(adaptive ? w + 1 : 0), bottom(adaptive ? w + 1 : 0);
+  const SE3d* bottom_pose = nullptr;  // the pose `bottom` was sampled with, for row v - 1
   for (std::size_t v = 0; v < h; ++v) {
+    const SE3d& T_world_cam = pose_of_row(v);
+    const Eigen::Matrix3d R = T_world_cam.linear();
+    const Eigen::Vector3d o =
+        T_world_cam * Eigen::Vector3d(cam == 1 ? camera.baseline_m : 0.0, 0.0, 0.0);
+    if (!inside(box, o)) {
+      outside(v);
+      bottom_pose = nullptr;
+      continue;
+    }
+    // Ray direction of (u, v) = R * ((u - cx)/f, (v - cy)/f, 1) = c0 + u*du + v*dv.
+    const Eigen::Vector3d du = R.col(0) * inv_f;
+    const Eigen::Vector3d dv = R.col(1) * inv_f;
+    const Eigen::Vector3d c0 = R.col(2) - camera.cx_px * du - camera.cy_px * dv;
+    if (adaptive) {
+      const auto corners = [&](std::vector<double>& out_row, double y) {
+        for (std::size_t u = 0; u <= w; ++u) {
+          const Eigen::Vector3d d = c0 + (static_cast<double>(u) - 0.5) * du + y * dv;
+          double range = 0, s = 0, t = 0;
+          RoomFace surface = RoomFace::kFloor;
+          out_row[u] = std::numeric_limits<double>::quiet_NaN();
+          if (!cast(box, o, d, range, surface)) continue;
+          surface_coords(surface, o + range * d, s, t);
+          out_row[u] = sampler.shapes(static_cast<int>(surface), s, t);
+        }
+      };
+      const double vc = static_cast<double>(v);
+      if (bottom_pose == &T_world_cam) {
+        top.swap(bottom);  // the row above was seen from the same pose: share its corners
+      } else {
+        corners(top, vc - 0.5);
+      }
+      corners(bottom, vc + 0.5);
+      bottom_pose = &T_world_cam;
+    }
     for (std::size_t u = 0; u < w; ++u) {
       const double uc = static_cast<double>(u), vc = static_cast<double>(v);
       double range = 0;
       RoomFace surface = RoomFace::kFloor;
       double s = 0, t = 0;
+      if (adaptive && top[u] == top[u + 1] && top[u] == bottom[u] && top[u] == bottom[u + 1]) {
+        double value = top[u];
+        const Eigen::Vector3d d = c0 + uc * du + vc * dv;
+        if (cast(box, o, d, range, surface)) {
+          surface_coords(surface, o + range * d, s, t);
+          value += sampler.noise(static_cast<int>(surface), s, t);
+        }
+        sink(v * w + u, value);
+        continue;
+      }
+      if (n == 1) {
+        // One sample at the pixel centre: the shapes and the noise share its ray (the same
+        // value the general path computes, with one cast instead of two).
+        const Eigen::Vector3d d = c0 + uc * du + vc * dv;
+        double value = 0.0;
+        if (cast(box, o, d, range, surface)) {
+          surface_coords(surface, o + range * d, s, t);
+          value = sampler.shapes(static_cast<int>(surface), s, t) +
+                  sampler.noise(static_cast<int>(surface), s, t);
+        }
+        sink(v * w + u, value);
+        continue;
+      }
       double sum = 0.0;
       for (int a = 0; a < n; ++a) {
         for (int b = 0; b < n; ++b) {
@@ -324,9 +391,44 @@ void render_room(const SyntheticRoom& room, const SyntheticCamera& camera, const
         surface_coords(surface, o + range * d, s, t);
         value += sampler.noise(static_cast<int>(surface), s, t);
       }
-      out[v * w + u] = static_cast<std::uint8_t>(std::clamp(value, 0.0, 255.0) + 0.5);
+      sink(v * w + u, value);
     }
   }
+}
+
+}  // namespace
+
+void render_room(const SyntheticRoom& room, const SyntheticCamera& camera, const SE3d& T_world_cam,
+                 int cam, std::span<std::uint8_t> out) {
+  check_render_args("render_room", camera, cam, out.size());
+  const std::size_t w = static_cast<std::size_t>(camera.width_px);
+  render_rows(
+      room, camera, cam, [&](std::size_t) -> const SE3d& { return T_world_cam; },
+      [&](std::size_t i, double value) {
+        out[i] = static_cast<std::uint8_t>(std::clamp(value, 0.0, 255.0) + 0.5);
+      },
+      [&](std::size_t v) {
+        std::fill(out.begin() + static_cast<std::ptrdiff_t>(v * w),
+                  out.begin() + static_cast<std::ptrdiff_t>((v + 1) * w), std::uint8_t{0});
+      });
+}
+
+void render_room_accumulate(const SyntheticRoom& room, const SyntheticCamera& camera,
+                            std::span<const SE3d> T_world_cam_rows, int cam, float weight,
+                            std::span<float> accum) {
+  check_render_args("render_room_accumulate", camera, cam, accum.size());
+  const std::size_t h = static_cast<std::size_t>(camera.height_px);
+  if (T_world_cam_rows.size() != 1 && T_world_cam_rows.size() != h) {
+    throw std::invalid_argument("render_room_accumulate: needs 1 pose or one per row (" +
+                                std::to_string(h) + "), got " +
+                                std::to_string(T_world_cam_rows.size()));
+  }
+  const bool per_row = T_world_cam_rows.size() == h && h > 1;
+  render_rows(
+      room, camera, cam,
+      [&](std::size_t v) -> const SE3d& { return T_world_cam_rows[per_row ? v : 0]; },
+      [&](std::size_t i, double value) { accum[i] += weight * static_cast<float>(value); },
+      [](std::size_t) {});
 }
 
 std::vector<StampedPose> synthetic_trajectory(const SyntheticRoom& room, int n, double rate_hz,
