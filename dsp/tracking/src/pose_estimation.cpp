@@ -87,11 +87,12 @@ SE3d refine_with(const StereoIntrinsics& K, std::span<const PoseObservation> obs
       // uncertainty, so far points steer the rotation more than the translation).
       const int rows = has_right(o) ? 3 : 2;
       Eigen::Vector3d r(uvr.x() - o.u_px, uvr.y() - o.v_px, 0.0);
-      double row_weight[3] = {1.0, 1.0, 1.0};
+      const double w_obs = o.weight;
+      double row_weight[3] = {w_obs, w_obs, w_obs};
       if (has_right(o)) {
         J.row(2) = J.row(0) - J.row(2);
         r[2] = (uvr.x() - uvr.z()) - (o.u_px - o.u_right_px);
-        row_weight[2] = disparity_weight(K, o, p.z(), disparity_sigma_px);
+        row_weight[2] = w_obs * disparity_weight(K, o, p.z(), disparity_sigma_px);
       }
       for (int k = 0; k < rows; ++k) {
         const double a = std::abs(r[k]) * std::sqrt(row_weight[k]);

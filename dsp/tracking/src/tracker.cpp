@@ -167,6 +167,13 @@ struct Tracker::Impl {
     return PointRef{id, points[static_cast<std::size_t>(id)].generation};
   }
 
+  /// A far point's bearing counts less the farther it is (its depth came from a disparity of a
+  /// few pixels and would steer the translation); near points count fully.
+  float observation_weight(const MapPoint& p, double depth) const {
+    if (!p.far || !(depth > config.max_depth_m)) return 1.0f;
+    const double r = config.max_depth_m / depth;
+    return static_cast<float>(r * r);
+  }
   void make_thumbnail(const GrayView& img, std::vector<float>& out) const;
   const char* check(const Image& left, const Image& right) const;
   void rectify(const Image& left, const Image& right);
@@ -528,6 +535,7 @@ void Tracker::Impl::stage1(const SE3d& prior, TrackResult& result) {
     PoseObservation o;
     o.p_world = p.p_world;
     o.sigma_m = p.sigma_m;
+    o.weight = observation_weight(p, depth);
     o.u_px = u;
     o.v_px = v;
     o.u_right_px = ur ? *ur : NAN;
@@ -569,6 +577,7 @@ void Tracker::Impl::stage2(int radius, TrackResult& result, const KeyframeRecord
     PoseObservation o;
     o.p_world = p.p_world;
     o.sigma_m = p.sigma_m;
+    o.weight = observation_weight(p, depth);
     o.u_px = hit->first;
     o.v_px = hit->second;
     o.u_right_px = ur ? *ur : NAN;

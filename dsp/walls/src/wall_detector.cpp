@@ -100,15 +100,17 @@ WallDetector::WallDetector(std::size_t max_points, DetectorConfig config)
   cell_start_.assign(table, 0);
   cell_count_.assign(table, 0);
   scratch_points_.reserve(cap);
-  viewpoints_.reserve(64);
+  viewpoints_.reserve(kMaxViewpoints);
   viewpoints_.emplace_back(Eigen::Vector3f::Zero());
 }
 
 void WallDetector::set_viewpoints(std::span<const Eigen::Vector3d> viewpoints) {
   if (viewpoints.empty()) throw std::invalid_argument("at least one viewpoint is needed");
-  if (viewpoints.size() > viewpoints_.capacity()) {
-    throw std::length_error("more viewpoints than the detector holds (64)");
+  if (viewpoints.size() > kMaxViewpoints) {
+    throw std::length_error(std::to_string(viewpoints.size()) +
+                            " viewpoints: more than the detector holds (64)");
   }
+  viewpoints_.reserve(kMaxViewpoints);  // a copied detector's vector has only its size
   viewpoints_.clear();
   for (const auto& v : viewpoints) viewpoints_.push_back((R_work_input_ * v).cast<float>());
 }

@@ -125,6 +125,7 @@ ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& op
   // Modules.
   TrackingThreadOptions tracking;
   tracking.tracking = tracking_options(board.tracking);
+  if (options.adjust_tracking) options.adjust_tracking(tracking.tracking);
   if (lockstep) tracking.tracking.mapping_thread = false;
   tracking.tracking.use_gyro = options.use_gyro;
   tracking.tracking.mapping_thread_spec = thread_spec("mapping", realtime);

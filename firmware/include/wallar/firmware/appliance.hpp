@@ -76,6 +76,9 @@ struct ApplianceOptions {
   /// Draw this wall model (in the first body pose's world) instead of the reconstruction's.
   std::optional<WallModel> view_walls;
   bool use_gyro = true;  //!< the gyro's rotation as the tracker's prior
+  /// Adjusts the tracker and mapper settings made from the board file before they are used
+  /// (benchmarks and tests: capacities, thresholds); empty: the board's.
+  std::function<void(TrackingOptions&)> adjust_tracking;
   dsp::ScoreMethod wall_method = dsp::ScoreMethod::kBsf;
   double wall_threshold_m = 0.04;  //!< inlier band of the tracker's map
   int max_surfaces = 6;

@@ -23,6 +23,9 @@ struct PoseObservation {
   float u_px = 0.0f, v_px = 0.0f;
   float u_right_px = NAN;  //!< NaN when the right eye did not see it
   float sigma_m = 0.0f;    //!< the map point's position uncertainty (1 sigma, along the ray)
+  /// How much the observation counts in the refinement (a far point's bearing: its depth, from
+  /// one small disparity, would otherwise steer the translation).
+  float weight = 1.0f;
 };
 
 struct PoseParams {

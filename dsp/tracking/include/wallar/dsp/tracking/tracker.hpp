@@ -65,8 +65,9 @@ struct TrackerConfig {
   /// nearer ones (a street ahead of a car, a far wall): they keep the pose, mostly its rotation,
   /// where near structure is missing. 0: the depth of a 4 px disparity.
   double far_depth_m = 0.0;
-  /// A key-frame that made fewer than this share of max_tracks near points adds far ones.
-  double min_near_share = 0.3;
+  /// A key-frame that leaves fewer than this share of max_tracks tracked with near points adds
+  /// far ones (their bearings weighted by (max_depth_m / depth)^2 in the pose).
+  double min_near_share = 0.45;
   double keyframe_distance_ratio = 0.12;  //!< of the scene depth at keyframe_depth_quantile
   /// The quantile of the tracked points' depths that sets the key-frame distance: the near
   /// structure, which leaves the view first (far points would space key-frames too widely).

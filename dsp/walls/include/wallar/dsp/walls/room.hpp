@@ -67,7 +67,8 @@ class RoomEstimator {
 };
 
 /// The search for a tracker's sparse map: the inlier band `threshold_m`, the key-frames' centres
-/// as the viewpoints of the backlier test (the origin when there are none), 2-D with `down`
+/// as the viewpoints of the backlier test (the origin when there are none; evenly spaced ones
+/// when there are more than the detector holds, a moving rig's path), 2-D with `down`
 /// (gravity in the map's frame) when given, 3-D otherwise.
 inline RoomConfig room_config_for_map(const std::vector<Eigen::Vector3d>& keyframe_centres,
                                       const std::optional<Eigen::Vector3d>& down,
@@ -75,7 +76,15 @@ inline RoomConfig room_config_for_map(const std::vector<Eigen::Vector3d>& keyfra
   RoomConfig config;
   config.detector.threshold_m = threshold_m;
   config.gravity = down;
-  config.viewpoints = keyframe_centres;
+  const std::size_t n = keyframe_centres.size();
+  if (n <= kMaxViewpoints) {
+    config.viewpoints = keyframe_centres;
+  } else {
+    config.viewpoints.clear();  // the default holds the origin
+    for (std::size_t i = 0; i < kMaxViewpoints; ++i) {
+      config.viewpoints.push_back(keyframe_centres[i * (n - 1) / (kMaxViewpoints - 1)]);
+    }
+  }
   if (config.viewpoints.empty()) config.viewpoints.push_back(Eigen::Vector3d::Zero());
   config.max_surfaces = max_surfaces;
   return config;

@@ -42,6 +42,9 @@
 
 namespace wallar::dsp {
 
+/// Viewpoints a WallDetector holds (set_viewpoints() refuses more).
+inline constexpr std::size_t kMaxViewpoints = 64;
+
 enum class ScoreMethod : std::uint8_t { kRansac, kMsac, kBsf, kBinomial };
 enum class Sampling : std::uint8_t { kUniform, kGuided };
 
