@@ -66,7 +66,8 @@ enum class Kernel : std::uint8_t { kHuber, kCauchy };
 /// Gauss-Newton on the observations flagged in `use` with a robust kernel of scale `scale_px`.
 SE3d refine_with(const StereoIntrinsics& K, std::span<const PoseObservation> observations,
                  std::span<const std::uint8_t> use, SE3d T, double scale_px, Kernel kernel,
-                 int iterations, double disparity_sigma_px) {
+                 int iterations, const PoseParams& params) {
+  const double disparity_sigma_px = params.disparity_sigma_px;
   for (int it = 0; it < iterations; ++it) {
     Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
@@ -110,6 +111,12 @@ SE3d refine_with(const StereoIntrinsics& K, std::span<const PoseObservation> obs
       ++used;
     }
     if (used < 3) break;
+    if (params.rotation_prior_weight > 0.0) {
+      // Left perturbation: R <- exp(phi) R, so log(exp(phi) R R_p^T) ~ phi + log(R R_p^T).
+      const Eigen::AngleAxisd e(T.linear() * params.R_prior_cw.transpose());
+      H.bottomRightCorner<3, 3>().diagonal().array() += params.rotation_prior_weight;
+      g.tail<3>() += params.rotation_prior_weight * e.angle() * e.axis();
+    }
     const Eigen::Matrix<double, 6, 1> dx = H.ldlt().solve(-g);
     if (!dx.allFinite()) break;
     T = orthonormalised(se3_exp(dx) * T);
@@ -127,7 +134,7 @@ int polish(const StereoIntrinsics& K, std::span<const PoseObservation> observati
   const int n = static_cast<int>(observations.size());
   std::fill(inlier.begin(), inlier.end(), std::uint8_t{1});
   T = refine_with(K, observations, inlier, T, params.wide_px, Kernel::kCauchy, params.gn_iterations,
-                  params.disparity_sigma_px);
+                  params);
   for (int pass = 0; pass < 2; ++pass) {
     for (int i = 0; i < n; ++i) {
       inlier[static_cast<std::size_t>(i)] =
@@ -137,7 +144,7 @@ int polish(const StereoIntrinsics& K, std::span<const PoseObservation> observati
               : 0;
     }
     T = refine_with(K, observations, inlier, T, params.huber_px, Kernel::kHuber,
-                    params.gn_iterations, params.disparity_sigma_px);
+                    params.gn_iterations, params);
   }
   return count_inliers(K, observations, T, inlier_sq, params.disparity_sigma_px);
 }
@@ -147,7 +154,7 @@ int polish(const StereoIntrinsics& K, std::span<const PoseObservation> observati
 SE3d refine_pose(const StereoIntrinsics& K, std::span<const PoseObservation> observations,
                  std::span<const std::uint8_t> use, SE3d T, const PoseParams& params) {
   return refine_with(K, observations, use, T, params.huber_px, Kernel::kHuber, params.gn_iterations,
-                     params.disparity_sigma_px);
+                     params);
 }
 
 PoseResult estimate_pose(const StereoIntrinsics& K, std::span<const PoseObservation> observations,

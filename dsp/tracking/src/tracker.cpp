@@ -139,6 +139,8 @@ struct Tracker::Impl {
   bool segment_started = false;  // the current segment has made its first key-frame
   int lost_frames = 0;           // in a row
   bool stage2_ran = false;       // this frame
+  bool gyro_prior_valid = false;  // this frame: the gyro's rotation, gyro_R_cw, holds the pose
+  Eigen::Matrix3d gyro_R_cw = Eigen::Matrix3d::Identity();
 
   std::int64_t now() const { return clock != nullptr ? clock() : 0; }
   KeyframeRecord* keyframe_by_id(std::int32_t id) {
@@ -470,6 +472,11 @@ int Tracker::Impl::add_stereo_points(bool& map_full) {
 PoseResult Tracker::Impl::solve(const SE3d& prior, bool ransac) {
   PoseParams params = config.pose;
   if (!ransac) params.ransac_iterations = 0;
+  if (gyro_prior_valid && config.gyro_rotation_sigma_deg > 0.0) {
+    const double sigma_rad = config.gyro_rotation_sigma_deg * M_PI / 180.0;
+    params.rotation_prior_weight = 1.0 / (sigma_rad * sigma_rad);
+    params.R_prior_cw = gyro_R_cw;
+  }
   inlier.resize(obs.size());
   return estimate_pose(K, obs.span(), prior, inlier.span(),
                        static_cast<std::uint64_t>(frame) * 7919u + 17u, params);
@@ -915,6 +922,8 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
   } else {
     // Prediction: constant velocity, with the gyro's rotation when given.
     const SE3d prior = predict_camera_pose(m.T_cw, m.velocity, gyro);
+    m.gyro_prior_valid = gyro.valid;
+    m.gyro_R_cw = prior.linear();
     bool ok = false;
     if (m.state == TrackingState::kTracking) {
       m.stage1(prior, result);
@@ -945,6 +954,7 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
       }
       t4 = m.now();
     }
+    m.gyro_prior_valid = false;  // relocalisation and key-frames: vision alone
     if (!ok) {
       // Lost: relocalise against the key-frames; meanwhile the motion model carries the pose
       // on for a few frames, then holds it (never NaN).

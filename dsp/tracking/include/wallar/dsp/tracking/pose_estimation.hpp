@@ -44,6 +44,11 @@ struct PoseParams {
   /// Disparity measurement noise (1 sigma) [px]; with the map point's depth uncertainty it sets
   /// how much the disparity residual counts (the stereo row of a far point weighs little).
   double disparity_sigma_px = 0.5;
+  /// A rotation the pose should keep, R_cam_world (the gyro's prediction): the refinements add
+  /// the residual log(R R_prior^T) with this weight [px^2 / rad^2] (0: no such term). Where
+  /// vision cannot tell a turn from a sideways step (motion blur along the turn), the gyro can.
+  double rotation_prior_weight = 0.0;
+  Eigen::Matrix3d R_prior_cw = Eigen::Matrix3d::Identity();
 };
 
 struct PoseResult {

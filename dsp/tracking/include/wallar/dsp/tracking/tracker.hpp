@@ -96,6 +96,9 @@ struct TrackerConfig {
   std::uint32_t cull_after_visible = 20;
   double cull_found_ratio = 0.25;
   double depth_sigma_px = 0.5;    //!< disparity noise for a new point's depth uncertainty
+  /// How far the gyro's rotation since the last frame may be trusted (1 sigma) [deg]: the pose
+  /// keeps the predicted rotation within about this (0: the gyro only seeds the search).
+  double gyro_rotation_sigma_deg = 0.001;
   DetectorParams detector{.bucket_px = 32};
   KltParams klt;
   StereoMatchParams stereo;
