@@ -39,12 +39,13 @@ eval::SynthRigOptions options_of(const SynthRigArgs& a) {
   eval::SynthRigOptions o = a.options;
   const auto motion = dsp::head_motion_named(a.motion);
   if (!motion) {
-    throw InputError("--motion: must be look-around, walk, quick-turns or room-loop, got '" +
+    throw InputError("--motion: must be look-around, walk, quick-turns, room-loop or walk-turns, got '" +
                      printable(a.motion) + "'");
   }
   o.motion = *motion;
-  if (a.peak_turn_given && o.motion != dsp::HeadMotion::kQuickTurns) {
-    throw InputError("--peak-turn-deg-s: applies to --motion quick-turns only");
+  if (a.peak_turn_given && o.motion != dsp::HeadMotion::kQuickTurns &&
+      o.motion != dsp::HeadMotion::kWalkTurns) {
+    throw InputError("--peak-turn-deg-s: applies to --motion quick-turns and walk-turns only");
   }
   if (a.blur == "on" || a.blur == "off") {
     o.blur = a.blur == "on";
@@ -113,7 +114,7 @@ void add_eval_synth_rig_command(CLI::App& eval, std::function<int()>& run) {
       "synth-rig",
       "Write a synthetic moving-headset recording (EuRoC layout: stereo, IMU, ground truth)");
   s->add_option("--out", a->out, "Output folder (must not exist, or be empty)")->required();
-  s->add_option("--motion", a->motion, "look-around, walk, quick-turns or room-loop")
+  s->add_option("--motion", a->motion, "look-around, walk, quick-turns, room-loop or walk-turns (walking with quick glances aside)")
       ->capture_default_str();
   s->add_option("--duration", o.duration_s, "Length [s]")->capture_default_str();
   s->add_option("--camera-rate", o.camera_rate_hz, "Stereo frame rate [Hz]")->capture_default_str();
@@ -135,7 +136,7 @@ void add_eval_synth_rig_command(CLI::App& eval, std::function<int()>& run) {
   s->add_option("--time-offset-ms", o.time_offset_ms,
                 "IMU clock minus camera clock [ms] (Kalibr's timeshift_cam_imu)")
       ->capture_default_str();
-  s->add_option("--peak-turn-deg-s", o.peak_turn_deg_s, "quick-turns: peak rate of each turn")
+  s->add_option("--peak-turn-deg-s", o.peak_turn_deg_s, "quick-turns, walk-turns: peak rate of each turn")
       ->capture_default_str()
       ->each([a](const std::string&) { a->peak_turn_given = true; });
   s->add_option("--width", o.width_px, "Image width [px]")->capture_default_str();

@@ -110,6 +110,7 @@ bool residual_in_camera(const StereoIntrinsics& K, const Eigen::Vector3d& p_cam,
   // Right camera = left shifted by +b along x: X_right = X - b.
   r.z() = stereo ? K.f_px * (p_cam.x() - K.baseline_m) * inv_z + K.cx_px - obs.u_right_px : 0.0;
   rows = stereo ? 3 : 2;
+  r /= obs.sigma_px;  // in units of the observation's noise
   return true;
 }
 
@@ -318,7 +319,6 @@ void apply(const Step& step, const Layout& L, std::vector<BaKeyframe>& keyframes
 
 // --- Building blocks ----------------------------------------------------------------------------
 
-
 bool linearize_observation(const StereoIntrinsics& K, const SE3d& T_cam_world,
                            const Eigen::Vector3d& p_world, const BaObservation& obs,
                            BaLinearization& out) {
@@ -337,6 +337,7 @@ bool linearize_observation(const StereoIntrinsics& K, const SE3d& T_cam_world,
   Eigen::Matrix3d J_proj;
   J_proj << fz, 0, -X * fz2, 0, fz, -Y * fz2, fz, 0, -(X - K.baseline_m) * fz2;
   if (rows == 2) J_proj.row(2).setZero();
+  J_proj /= obs.sigma_px;
 
   // Left perturbation T <- exp(xi) T, xi = (v, w): p_c <- p_c + w x p_c + v to first order,
   // so dp_c/dxi = [I | -[p_c]x]. The point enters through R: dp_c/dp_w = R.

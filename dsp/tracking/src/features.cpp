@@ -4,8 +4,8 @@
 #include "wallar/dsp/tracking/features.hpp"
 
 #include <algorithm>
-#include <bit>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>

@@ -3,8 +3,8 @@
 /// @brief Pyramid halving and the fixed-point remap.
 #include "wallar/dsp/tracking/gray_image.hpp"
 
-#include <cmath>
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 

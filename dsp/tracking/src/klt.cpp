@@ -14,12 +14,8 @@ constexpr int kMaxHalf = 10;
 constexpr std::size_t kMaxWindow = (2 * kMaxHalf + 1) * (2 * kMaxHalf + 1);
 
 /// Full-resolution pixel coordinate to level `level` (2x2-mean pyramids: pixel centres shift).
-float to_level(float x, int level) {
-  return (x + 0.5f) / static_cast<float>(1 << level) - 0.5f;
-}
-float from_level(float x, int level) {
-  return (x + 0.5f) * static_cast<float>(1 << level) - 0.5f;
-}
+float to_level(float x, int level) { return (x + 0.5f) / static_cast<float>(1 << level) - 0.5f; }
+float from_level(float x, int level) { return (x + 0.5f) * static_cast<float>(1 << level) - 0.5f; }
 }  // namespace
 
 Brightness estimate_brightness(std::span<float> prev_samples, std::span<float> cur_samples,

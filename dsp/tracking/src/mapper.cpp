@@ -24,6 +24,7 @@ struct PointRecord {
   float sigma_m = 0.0f;
   float sigma0_m = 0.0f;  // from the creating stereo pair
   bool alive = true;
+  int first_keyframe = 0;  // index of the key-frame that made it
   std::vector<Observation> observations;
 };
 struct PointSlot {
@@ -37,6 +38,7 @@ struct MapperKeyframe {
   std::int32_t segment = 0;
   bool segment_start = false;
   bool alive = true;
+  float observation_sigma_px = 1.0f;
   std::vector<PointSlot> points;  // what it saw (a slot whose generation moved on is gone)
 };
 
@@ -62,6 +64,7 @@ struct Mapper::Impl {
   MapperStats adjust(const std::vector<int>& window, int iterations, int max_fixed,
                      MapCorrection& out);
   void cull_redundant(const std::vector<int>& window, MapCorrection& out, MapperStats& stats);
+  void cull_unconfirmed(MapCorrection& out, MapperStats& stats);
   void kill_point(PointRecord& p, MapCorrection& out, MapperStats& stats);
 };
 
@@ -90,6 +93,7 @@ void Mapper::add_keyframe(const KeyframeMessage& message) {
   record.T_world_cam = message.T_world_cam;
   record.segment = message.segment;
   record.segment_start = message.segment_start;
+  record.observation_sigma_px = std::max(1.0f, message.observation_sigma_px);
   for (const PointRef& ref : message.culled) {
     const auto it = m.point_index.find(ref.id);
     if (it == m.point_index.end()) continue;
@@ -103,7 +107,8 @@ void Mapper::add_keyframe(const KeyframeMessage& message) {
   for (const NewMapPoint& np : message.new_points) {
     auto [it, fresh] =
         m.point_index.try_emplace(np.point, static_cast<std::int32_t>(m.points.size()));
-    PointRecord record_point{np.point, np.generation, np.p_world, np.sigma_m, np.sigma_m, true, {}};
+    PointRecord record_point{np.point,   np.generation, np.p_world, np.sigma_m,
+                             np.sigma_m, true,          k,          {}};
     if (fresh) {
       m.points.push_back(std::move(record_point));
     } else {
@@ -130,8 +135,8 @@ void Mapper::add_keyframe(const KeyframeMessage& message) {
 
 std::vector<int> Mapper::Impl::newest_alive(int count) const {
   std::vector<int> out;
-  for (int k = static_cast<int>(keyframes.size()) - 1; k >= 0 && static_cast<int>(out.size()) < count;
-       --k) {
+  for (int k = static_cast<int>(keyframes.size()) - 1;
+       k >= 0 && static_cast<int>(out.size()) < count; --k) {
     if (keyframes[static_cast<std::size_t>(k)].alive) out.push_back(k);
   }
   std::reverse(out.begin(), out.end());
@@ -177,13 +182,15 @@ MapperStats Mapper::Impl::adjust(const std::vector<int>& window, int iterations,
   std::sort(outside.begin(), outside.end(), [](const auto& a, const auto& b) {
     return a.second != b.second ? a.second > b.second : a.first > b.first;
   });
-  if (static_cast<int>(outside.size()) > max_fixed) outside.resize(static_cast<std::size_t>(max_fixed));
+  if (static_cast<int>(outside.size()) > max_fixed)
+    outside.resize(static_cast<std::size_t>(max_fixed));
   std::vector<std::int32_t> ba_keyframe_of(keyframes.size(), -1);
   std::vector<BaKeyframe> ba_keyframes;
   std::vector<std::int32_t> keyframe_of_ba;
   const auto add = [&](int k, bool fixed) {
     ba_keyframe_of[static_cast<std::size_t>(k)] = static_cast<std::int32_t>(ba_keyframes.size());
-    ba_keyframes.push_back(BaKeyframe{keyframes[static_cast<std::size_t>(k)].T_world_cam.inverse(), fixed});
+    ba_keyframes.push_back(
+        BaKeyframe{keyframes[static_cast<std::size_t>(k)].T_world_cam.inverse(), fixed});
     keyframe_of_ba.push_back(k);
   };
   // Each segment's first key-frame holds its gauge.
@@ -211,7 +218,9 @@ MapperStats Mapper::Impl::adjust(const std::vector<int>& window, int iterations,
     for (const Observation& o : points[static_cast<std::size_t>(point_of_ba[bp])].observations) {
       const std::int32_t bk = ba_keyframe_of[static_cast<std::size_t>(o.keyframe)];
       if (bk < 0) continue;
-      ba_obs.push_back(BaObservation{bk, static_cast<int>(bp), o.u_px, o.v_px, o.u_right_px});
+      ba_obs.push_back(
+          BaObservation{bk, static_cast<int>(bp), o.u_px, o.v_px, o.u_right_px,
+                        keyframes[static_cast<std::size_t>(o.keyframe)].observation_sigma_px});
     }
   }
   if (ba_obs.empty()) return stats;
@@ -239,7 +248,7 @@ MapperStats Mapper::Impl::adjust(const std::vector<int>& window, int iterations,
     double e = 1e9;
     if (p.z() > 1e-3) {
       const Eigen::Vector3d uvr = K.project(p);
-      e = std::hypot(uvr.x() - o.u_px, uvr.y() - o.v_px);
+      e = std::hypot(uvr.x() - o.u_px, uvr.y() - o.v_px) / o.sigma_px;
     }
     error_sum[static_cast<std::size_t>(o.point)] += e;
     ++error_n[static_cast<std::size_t>(o.point)];
@@ -253,9 +262,8 @@ MapperStats Mapper::Impl::adjust(const std::vector<int>& window, int iterations,
     }
     p.p_world = ba_points[bp].p_world;
     // Seen from several key-frames, the point is as good as its best view's depth.
-    p.sigma_m = static_cast<float>(
-        p.sigma0_m /
-        std::sqrt(static_cast<double>(std::max<std::size_t>(1, p.observations.size()))));
+    p.sigma_m = static_cast<float>(p.sigma0_m / std::sqrt(static_cast<double>(std::max<std::size_t>(
+                                                    1, p.observations.size()))));
     out.points.push_back(MapCorrection::Point{p.id, p.generation, p.p_world, p.sigma_m});
     ++stats.adjusted_points;
   }
@@ -299,10 +307,25 @@ void Mapper::Impl::cull_redundant(const std::vector<int>& window, MapCorrection&
   }
 }
 
+/// Points that no key-frame after the one that made them saw again within
+/// confirm_keyframes key-frames are dropped (ORB-SLAM's recent-point culling): a key-frame makes
+/// more points than the tracker follows, and those never seen again would fill the map.
+void Mapper::Impl::cull_unconfirmed(MapCorrection& out, MapperStats& stats) {
+  const int newest = static_cast<int>(keyframes.size()) - 1;
+  const int judged = newest - config.confirm_keyframes;  // made by this key-frame index
+  if (judged < 0) return;
+  for (PointRecord& p : points) {
+    if (!p.alive || p.first_keyframe != judged) continue;
+    if (p.observations.size() < 2) kill_point(p, out, stats);
+  }
+}
+
 MapperStats Mapper::local_adjust(MapCorrection& out) {
   Impl& m = *impl_;
   const std::vector<int> window = m.newest_alive(m.config.local_keyframes);
-  MapperStats stats = m.adjust(window, m.config.local_iterations, m.config.local_fixed_keyframes, out);
+  MapperStats stats =
+      m.adjust(window, m.config.local_iterations, m.config.local_fixed_keyframes, out);
+  if (m.config.confirm_keyframes > 0) m.cull_unconfirmed(out, stats);
   if (m.alive_keyframes >= m.config.min_keyframes_for_ba) m.cull_redundant(window, out, stats);
   stats.keyframes = m.alive_keyframes;
   return stats;

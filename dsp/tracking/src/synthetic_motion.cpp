@@ -94,6 +94,17 @@ Jet turn_profile(Jet tau, const QuickTurn& turn) {
           turn.yaw_rad * (p1 * tau.dd + p2 * tau.d * tau.d)};
 }
 
+/// The yaw the quick turns added by model time t: the turns before the last one that started
+/// are complete (turns never overlap).
+Jet quick_turn_yaw(const std::vector<QuickTurn>& turns, const std::vector<double>& yaw_before,
+                   const Jet& t) {
+  const auto it = std::upper_bound(turns.begin(), turns.end(), t.v,
+                                   [](double x, const QuickTurn& q) { return x < q.t_start_s; });
+  if (it == turns.begin()) return constant(0.0);
+  const std::size_t i = static_cast<std::size_t>(it - turns.begin()) - 1;
+  return turn_profile(t, turns[i]) + yaw_before[i];
+}
+
 // splitmix64's finaliser (portable, unlike std::hash).
 constexpr std::uint64_t mix64(std::uint64_t x) {
   x += 0x9E3779B97F4A7C15ULL;
@@ -218,7 +229,9 @@ SyntheticRoom headset_room(std::uint64_t texture_seed) {
 HeadMotionModel::HeadMotionModel(const SyntheticRoom& room, const HeadMotionConfig& config)
     : room_(room), config_(config) {
   const Room r = dims(room);
-  const bool walking = config.motion == HeadMotion::kWalk || config.motion == HeadMotion::kRoomLoop;
+  const bool walking = config.motion == HeadMotion::kWalk ||
+                       config.motion == HeadMotion::kRoomLoop ||
+                       config.motion == HeadMotion::kWalkTurns;
   const double need_x = walking ? 5.0 : 3.0, need_y = walking ? 4.0 : 3.0;
   if (!(r.sx >= need_x && r.sy >= need_y && r.sz >= 2.2)) {
     char what[96];
@@ -280,6 +293,25 @@ HeadMotionModel::HeadMotionModel(const SyntheticRoom& room, const HeadMotionConf
       t += turn.duration_s + 1.0 + 1.5 * unit_open(rng());
     }
   }
+  if (config.motion == HeadMotion::kWalkTurns) {
+    // Glances: a quick turn aside, a look, the quick turn back, then walking on.
+    std::mt19937_64 rng(mix64(config.seed ^ 0x77616C6B7475726EULL));
+    const double peak = config.peak_turn_deg_s * kDeg;
+    double t = config.still_start_s + config.ramp_s + 0.5;
+    constexpr std::array<double, 3> kAmplitudesDeg = {60.0, 75.0, 90.0};
+    while (t < config.duration_s + 5.0) {
+      const double amplitude = kAmplitudesDeg[rng() % 3] * kDeg;
+      const double sign = (rng() & 1) != 0 ? 1.0 : -1.0;
+      for (const double yaw : {sign * amplitude, -sign * amplitude}) {
+        QuickTurn turn{t, 2.0 * amplitude / peak, yaw};
+        turn_yaw_before_.push_back(
+            turns_.empty() ? 0.0 : turn_yaw_before_.back() + turns_.back().yaw_rad);
+        turns_.push_back(turn);
+        t += turn.duration_s + 0.4 + 0.6 * unit_open(rng());
+      }
+      t += 1.0 + 1.5 * unit_open(rng());
+    }
+  }
 }
 
 double HeadMotionModel::lap_period_s() const {
@@ -309,21 +341,14 @@ BodyMotionState HeadMotionModel::state(double t_s) const {
       const Eigen::Vector3d& p0 = stand_neck_world_;
       neck = {e * wave(tau, 0.015, 0.2, ph[1]) + p0.x(), e * wave(tau, 0.015, 0.15, ph[2]) + p0.y(),
               e * wave(tau, 0.005, 0.25, ph[3]) + p0.z()};
-      Jet turned = constant(0.0);
-      // The last turn started by now (turns never overlap): the ones before it are complete.
-      const auto it =
-          std::upper_bound(turns_.begin(), turns_.end(), t_s,
-                           [](double x, const QuickTurn& q) { return x < q.t_start_s; });
-      if (it != turns_.begin()) {
-        const std::size_t i = static_cast<std::size_t>(it - turns_.begin()) - 1;
-        turned = turn_profile(t, turns_[i]) + turn_yaw_before_[i];
-      }
-      yaw = e * wave(tau, 6.0 * kDeg, 0.05, ph[4]) + turned + stand_yaw_rad_;
+      yaw = e * wave(tau, 6.0 * kDeg, 0.05, ph[4]) + quick_turn_yaw(turns_, turn_yaw_before_, t) +
+            stand_yaw_rad_;
       pitch = e * wave(tau, 3.0 * kDeg, 0.07, ph[6]) + kPitchDownRad;
       roll = e * wave(tau, 1.0 * kDeg, 0.09, ph[0]);
       break;
     }
     case HeadMotion::kWalk:
+    case HeadMotion::kWalkTurns:
     case HeadMotion::kRoomLoop: {
       const Path& p = path_;
       const Jet theta = p.omega_rad_s * envelope_integral(tau, config_.ramp_s) + ph[7];
@@ -339,6 +364,9 @@ BodyMotionState HeadMotionModel::state(double t_s) const {
       if (config_.motion == HeadMotion::kWalk) {
         look = wave(tau, 25.0 * kDeg, 0.08, ph[1]) + wave(tau, 10.0 * kDeg, 0.21, ph[2]);
         pitch = e * wave(tau, 5.0 * kDeg, 0.13, ph[3]);
+      } else if (config_.motion == HeadMotion::kWalkTurns) {
+        look = wave(tau, 8.0 * kDeg, 0.08, ph[1]) + quick_turn_yaw(turns_, turn_yaw_before_, t);
+        pitch = e * wave(tau, 4.0 * kDeg, 0.13, ph[3]);
       } else {  // every term a harmonic of the lap: the laps repeat
         look = 18.0 * kDeg * sin(2.0 * theta + ph[1]) + 8.0 * kDeg * sin(5.0 * theta + ph[2]);
         pitch = e * (4.0 * kDeg * sin(3.0 * theta + ph[3]));

@@ -493,9 +493,10 @@ RigCalibration synthetic_rig(const SyntheticCamera& camera) {
 Image render_room_image(const SyntheticRoom& room, const SyntheticCamera& camera,
                         const SE3d& T_world_cam, int cam) {
   Image img = Image::allocate(camera.width_px, camera.height_px, PixelFormat::kGray8);
-  render_room(room, camera, T_world_cam, cam,
-              std::span<std::uint8_t>(img.mutable_data(), static_cast<std::size_t>(camera.width_px) *
-                                                              static_cast<std::size_t>(camera.height_px)));
+  render_room(
+      room, camera, T_world_cam, cam,
+      std::span<std::uint8_t>(img.mutable_data(), static_cast<std::size_t>(camera.width_px) *
+                                                      static_cast<std::size_t>(camera.height_px)));
   return img;
 }
 

@@ -36,6 +36,7 @@ void KeyframeMessage::copy_from(const KeyframeMessage& other) {
   for (const NewMapPoint& p : other.new_points) new_points.push_back(p);
   segment = other.segment;
   segment_start = other.segment_start;
+  observation_sigma_px = other.observation_sigma_px;
   culled.clear();
   for (const PointRef& point : other.culled) culled.push_back(point);
 }
@@ -44,8 +45,7 @@ SE3d predict_camera_pose(const SE3d& T_cw_last, const SE3d& velocity, const Rota
   const Eigen::Matrix3d& R_last = T_cw_last.linear();
   const Eigen::Vector3d c_last = -R_last.transpose() * T_cw_last.translation();
   const SE3d T_cw_before = velocity.inverse() * T_cw_last;
-  const Eigen::Vector3d c_before =
-      -T_cw_before.linear().transpose() * T_cw_before.translation();
+  const Eigen::Vector3d c_before = -T_cw_before.linear().transpose() * T_cw_before.translation();
   const Eigen::Vector3d c_pred = c_last + (c_last - c_before);
   const Eigen::Matrix3d R_cur_last =
       gyro.valid ? gyro.q_prev_cur.conjugate().toRotationMatrix() : velocity.linear();
@@ -71,8 +71,8 @@ struct KeyframeRecord {
   TimeNs t_ns = 0;
   SE3d T_world_cam = SE3d::Identity();
   std::int32_t segment = 0;
-  FixedVector<PointRef> points;   //!< map points it observed
-  std::vector<float> thumbnail;   //!< zero-mean block averages, sized once
+  FixedVector<PointRef> points;  //!< map points it observed
+  std::vector<float> thumbnail;  //!< zero-mean block averages, sized once
 };
 
 /// A corner of the frame being relocalised, with its descriptor and (lazily) its right match.
@@ -113,8 +113,8 @@ struct Tracker::Impl {
   FixedVector<std::int32_t> obs_point;
   FixedVector<std::uint8_t> inlier;
   FixedVector<std::int32_t> candidates;
-  FixedVector<PointRef> pending_culls;   // culled since the last key-frame's message
-  FixedVector<std::int32_t> attempted;   // stage 1's tracks this frame
+  FixedVector<PointRef> pending_culls;  // culled since the last key-frame's message
+  FixedVector<std::int32_t> attempted;  // stage 1's tracks this frame
   FixedVector<RelocCorner> reloc_corners;
   FixedVector<float> brightness_prev, brightness_cur;  // stage 1's exposure samples
 
@@ -136,10 +136,13 @@ struct Tracker::Impl {
   std::int64_t last_keyframe_frame = -1;
   std::uint32_t stage2_offset = 0;
   std::int32_t segment = 0;
-  bool segment_started = false;  // the current segment has made its first key-frame
-  int lost_frames = 0;           // in a row
-  bool stage2_ran = false;       // this frame
-  bool gyro_prior_valid = false;  // this frame: the gyro's rotation, gyro_R_cw, holds the pose
+  bool segment_started = false;       // the current segment has made its first key-frame
+  int lost_frames = 0;                // in a row
+  bool stage2_ran = false;            // this frame
+  bool gyro_prior_valid = false;      // this frame: the gyro's rotation, gyro_R_cw, holds the pose
+  double observation_sigma_px = 1.0;  // this frame's (motion blur)
+  double turn_rate_deg_s = 0.0;       // this frame's
+  TimeNs last_t_ns = 0;               // the last frame's time
   Eigen::Matrix3d gyro_R_cw = Eigen::Matrix3d::Identity();
 
   std::int64_t now() const { return clock != nullptr ? clock() : 0; }
@@ -215,9 +218,9 @@ Tracker::Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock c
   m.width = rectifier.size().width;
   m.height = rectifier.size().height;
   m.K = StereoIntrinsics{rectifier.f_px(), rectifier.cx(), rectifier.cy(), rectifier.baseline_m()};
-  m.far_depth_m = std::max(config.max_depth_m, config.far_depth_m > 0.0
-                                                   ? config.far_depth_m
-                                                   : m.K.f_px * m.K.baseline_m / 4.0);
+  m.far_depth_m =
+      std::max(config.max_depth_m,
+               config.far_depth_m > 0.0 ? config.far_depth_m : m.K.f_px * m.K.baseline_m / 4.0);
   SE3d T_cam0_rect = SE3d::Identity();
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) T_cam0_rect.linear()(i, j) = rectifier.R(0)(j, i);
@@ -347,8 +350,7 @@ void Tracker::Impl::rectify(const Image& left, const Image& right) {
   const std::array<const Image*, 2> in{&left, &right};
   for (std::size_t i = 0; i < 2; ++i) {
     const Image& im = *in[i];
-    remap[i].apply(GrayView{im.data(), im.width(), im.height(), im.stride_bytes()},
-                   rect[i].data());
+    remap[i].apply(GrayView{im.data(), im.width(), im.height(), im.stride_bytes()}, rect[i].data());
   }
 }
 
@@ -403,8 +405,8 @@ std::int32_t Tracker::Impl::new_point(const Eigen::Vector3d& p_world, float sigm
   p.keyframe = next_keyframe;
   p.tracked_frame = static_cast<std::int32_t>(frame);
   extract_patch(rect[0].view(), u, v, p.patch);
-  p.has_descriptor = compute_descriptor(pyramid[static_cast<std::size_t>(cur_pyr)].level(1), u, v,
-                                        p.descriptor);
+  p.has_descriptor =
+      compute_descriptor(pyramid[static_cast<std::size_t>(cur_pyr)].level(1), u, v, p.descriptor);
   return id;
 }
 
@@ -426,8 +428,8 @@ int Tracker::Impl::add_stereo_points(bool& map_full) {
   const SE3d T_wc = T_cw.inverse();
   int added = 0;
   const auto add = [&](const Corner& c, float ur, const Eigen::Vector3d& p_cam, bool is_far) {
-    const float sigma = static_cast<float>(p_cam.z() * p_cam.z() / (K.f_px * K.baseline_m) *
-                                           config.depth_sigma_px);
+    const float sigma =
+        static_cast<float>(p_cam.z() * p_cam.z() / (K.f_px * K.baseline_m) * config.depth_sigma_px);
     if (message.observations.full()) return false;
     const std::int32_t id = new_point(T_wc * p_cam, sigma, c.u_px, c.v_px);
     if (id < 0) {
@@ -436,7 +438,7 @@ int Tracker::Impl::add_stereo_points(bool& map_full) {
     }
     MapPoint& p = points[static_cast<std::size_t>(id)];
     p.far = is_far;
-    if (is_far) ur = NAN;  // its bearing only
+    if (is_far) ur = NAN;                             // its bearing only
     tracks.push_back(Track{id, c.u_px, c.v_px, ur});  // false when the tracks are full
     message.observations.push_back(KeyframeObservation{id, p.generation, c.u_px, c.v_px, ur});
     message.new_points.push_back(NewMapPoint{id, p.generation, p.p_world, sigma});
@@ -473,8 +475,10 @@ PoseResult Tracker::Impl::solve(const SE3d& prior, bool ransac) {
   PoseParams params = config.pose;
   if (!ransac) params.ransac_iterations = 0;
   if (gyro_prior_valid && config.gyro_rotation_sigma_deg > 0.0) {
+    // Against observations of observation_sigma_px noise (the pixel terms count 1/sigma^2).
     const double sigma_rad = config.gyro_rotation_sigma_deg * M_PI / 180.0;
-    params.rotation_prior_weight = 1.0 / (sigma_rad * sigma_rad);
+    params.rotation_prior_weight =
+        observation_sigma_px * observation_sigma_px / (sigma_rad * sigma_rad);
     params.R_prior_cw = gyro_R_cw;
   }
   inlier.resize(obs.size());
@@ -753,6 +757,11 @@ bool Tracker::Impl::relocalise(TrackResult& result) {
 }
 
 bool Tracker::Impl::need_keyframe() const {
+  // Turning fast: wait for the turn to slow down unless the tracks run out.
+  if (turn_rate_deg_s > config.keyframe_max_turn_deg_s &&
+      static_cast<double>(tracks.size()) >= 0.25 * static_cast<double>(config.max_tracks)) {
+    return false;
+  }
   // Too few tracks: a key-frame adds points, but a scene with little texture would otherwise
   // make one every frame.
   if (static_cast<double>(tracks.size()) <
@@ -765,8 +774,8 @@ bool Tracker::Impl::need_keyframe() const {
   std::size_t n = 0;
   for (std::size_t i = 0; i < tracks.size() && n < depths.size();
        i += std::max<std::size_t>(1, tracks.size() / 64)) {
-    depths[n++] = static_cast<float>(
-        (T_cw * points[static_cast<std::size_t>(tracks[i].point)].p_world).z());
+    depths[n++] =
+        static_cast<float>((T_cw * points[static_cast<std::size_t>(tracks[i].point)].p_world).z());
   }
   if (n == 0) return true;
   const std::size_t q = std::min(
@@ -833,15 +842,16 @@ void Tracker::Impl::make_keyframe(TimeNs t_ns, TrackResult& result) {
   message.T_world_cam = T_cw.inverse();
   message.segment = segment;
   message.segment_start = !segment_started;
+  message.observation_sigma_px = static_cast<float>(observation_sigma_px);
   message.observations.clear();
   message.new_points.clear();
   message.culled.clear();
   for (const PointRef& point : pending_culls) message.culled.push_back(point);
   pending_culls.clear();
   for (const Track& t : tracks) {
-    message.observations.push_back(KeyframeObservation{
-        t.point, points[static_cast<std::size_t>(t.point)].generation, t.u_px, t.v_px,
-        t.u_right_px});
+    message.observations.push_back(
+        KeyframeObservation{t.point, points[static_cast<std::size_t>(t.point)].generation, t.u_px,
+                            t.v_px, t.u_right_px});
   }
   bool map_full = false;
   result.new_points = add_stereo_points(map_full);
@@ -923,6 +933,13 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
     // Prediction: constant velocity, with the gyro's rotation when given.
     const SE3d prior = predict_camera_pose(m.T_cw, m.velocity, gyro);
     m.gyro_prior_valid = gyro.valid;
+    // The turn rate this frame (the prediction's: the gyro's when it has one).
+    const double dt_s = m.last_t_ns > 0 && t_ns > m.last_t_ns ? ns_to_s(t_ns - m.last_t_ns) : 0.0;
+    m.turn_rate_deg_s =
+        dt_s > 0.0 ? rotation_angle_deg(prior.linear() * m.T_cw.linear().transpose()) / dt_s : 0.0;
+    m.observation_sigma_px =
+        1.0 + m.config.blur_sigma_px_per_deg_s *
+                  std::max(0.0, m.turn_rate_deg_s - m.config.keyframe_max_turn_deg_s);
     m.gyro_R_cw = prior.linear();
     bool ok = false;
     if (m.state == TrackingState::kTracking) {
@@ -940,8 +957,8 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
       if (!pose.ok && !m.velocity.isApprox(SE3d::Identity())) {
         // The motion model may be what failed (the head stopped or turned back): once more from
         // the last pose, turned as the gyro says.
-        const SE3d still = gyro.valid ? predict_camera_pose(m.T_cw_last, SE3d::Identity(), gyro)
-                                      : m.T_cw_last;
+        const SE3d still =
+            gyro.valid ? predict_camera_pose(m.T_cw_last, SE3d::Identity(), gyro) : m.T_cw_last;
         m.stage1(still, result);
         if (!m.obs.empty()) pose = m.solve(still, true);
       }
@@ -1006,6 +1023,7 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
     }
   }
   m.T_cw_last = m.T_cw;
+  m.last_t_ns = t_ns;
   const std::int64_t t5 = m.now();
   result.state = m.state;
   result.segment = m.segment;

@@ -41,6 +41,9 @@ struct BaObservation {
   int keyframe = 0;
   int point = 0;
   double u_px = 0, v_px = 0, u_right_px = NAN;
+  /// The measurement's noise (1 sigma) [px]: residuals and the Huber threshold are in its units
+  /// (a key-frame taken in a fast turn, blurred along it, sees its points less precisely).
+  double sigma_px = 1.0;
 };
 
 struct BaOptions {

@@ -29,7 +29,8 @@ struct GrayView {
     const float ax = x - static_cast<float>(x0), ay = y - static_cast<float>(y0);
     const std::uint8_t* r0 = row(y0) + x0;
     const std::uint8_t* r1 = r0 + stride;
-    return (1.0f - ay) * ((1.0f - ax) * r0[0] + ax * r0[1]) + ay * ((1.0f - ax) * r1[0] + ax * r1[1]);
+    return (1.0f - ay) * ((1.0f - ax) * r0[0] + ax * r0[1]) +
+           ay * ((1.0f - ax) * r1[0] + ax * r1[1]);
   }
   [[nodiscard]] bool inside(float x, float y, float border) const {
     return x >= border && y >= border && x < static_cast<float>(width) - 1.0f - border &&

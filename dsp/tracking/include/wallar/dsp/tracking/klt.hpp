@@ -16,11 +16,11 @@
 namespace wallar::dsp {
 
 struct KltParams {
-  int half_window = 5;        //!< 11x11 windows
-  int max_iterations = 15;    //!< per level
-  float epsilon_px = 0.02f;   //!< stop when the update is smaller
-  float max_mean_abs = 25.0f; //!< mean |residual| at level 0 above this: lost
-  float min_eigen = 1e-3f;    //!< smaller eigenvalue of the normalised gradient matrix
+  int half_window = 5;         //!< 11x11 windows
+  int max_iterations = 15;     //!< per level
+  float epsilon_px = 0.02f;    //!< stop when the update is smaller
+  float max_mean_abs = 25.0f;  //!< mean |residual| at level 0 above this: lost
+  float min_eigen = 1e-3f;     //!< smaller eigenvalue of the normalised gradient matrix
 };
 
 /// cur ~ gain * prev + bias, frame-wide.

@@ -24,7 +24,7 @@
 namespace wallar::dsp {
 
 struct MapperConfig {
-  int local_keyframes = 6;       //!< key-frames moved by a local adjustment
+  int local_keyframes = 6;  //!< key-frames moved by a local adjustment
   /// Key-frames outside the window that see its points and hold still in a local adjustment:
   /// at most this many (the ones sharing the most points), so a place seen from many
   /// key-frames does not make each adjustment slower.
@@ -35,21 +35,24 @@ struct MapperConfig {
   /// that share points with them still: bounded time however long the headset runs.
   int global_keyframes = 48;
   double huber_px = 1.5;
-  double cull_error_px = 4.0;    //!< mean reprojection error above which a point is culled
+  double cull_error_px = 4.0;  //!< mean reprojection error above which a point is culled
   int min_keyframes_for_ba = 2;
   /// A key-frame is redundant when this share of its points is seen by at least
   /// redundant_observers other key-frames (ORB-SLAM's rule); it is dropped, its points kept.
   double redundant_share = 0.9;
   int redundant_observers = 3;
   int keep_newest_keyframes = 4;  //!< never dropped (tracking still refers to them)
+  /// A point no other key-frame saw by the time this many more key-frames were made is
+  /// dropped (0: never).
+  int confirm_keyframes = 3;
 };
 
 /// The sparse map, published as one consistent value.
 struct MapSnapshot {
   std::uint64_t version = 0;
-  PointCloud points;                      //!< world frame; observations = key-frames that saw it
-  std::vector<float> sigma_m;             //!< per point, position uncertainty (1 sigma)
-  std::vector<std::int32_t> point_ids;    //!< the tracker's id of each point
+  PointCloud points;                    //!< world frame; observations = key-frames that saw it
+  std::vector<float> sigma_m;           //!< per point, position uncertainty (1 sigma)
+  std::vector<std::int32_t> point_ids;  //!< the tracker's id of each point
   std::vector<Eigen::Vector3d> keyframe_centres;  //!< camera centres of the key-frames
   std::vector<TimeNs> keyframe_t_ns;
   /// Which key-frames saw point i: viewer_index[viewer_offset[i] .. viewer_offset[i + 1]).
@@ -58,9 +61,9 @@ struct MapSnapshot {
 };
 
 struct MapperStats {
-  int keyframes = 0;          //!< key-frames in the map (dropped ones not counted)
+  int keyframes = 0;  //!< key-frames in the map (dropped ones not counted)
   int points = 0;
-  int culled_keyframes = 0;   //!< dropped as redundant by this adjustment
+  int culled_keyframes = 0;  //!< dropped as redundant by this adjustment
   int adjusted_keyframes = 0;
   int adjusted_points = 0;
   int iterations = 0;
@@ -86,8 +89,8 @@ class Mapper {
   /// still, and the older ones that share points with them): for idle time.
   MapperStats global_adjust(MapCorrection& out);
   [[nodiscard]] MapSnapshot snapshot() const;
-  [[nodiscard]] int keyframe_count() const;  //!< in the map now
-  [[nodiscard]] int points_count() const;    //!< alive points
+  [[nodiscard]] int keyframe_count() const;              //!< in the map now
+  [[nodiscard]] int points_count() const;                //!< alive points
   [[nodiscard]] std::uint64_t culled_keyframes() const;  //!< dropped as redundant, in all
   [[nodiscard]] std::uint64_t stale_messages() const;    //!< parts naming an old generation
 

@@ -48,9 +48,10 @@ enum class HeadMotion {
   kWalk,        //!< walking an ellipse at walk_speed_m_s while looking around (not periodic)
   kQuickTurns,  //!< standing, quick head turns of 60-120 deg peaking at peak_turn_deg_s
   kRoomLoop,    //!< walking laps of one ellipse, every lap the same (map-capacity tests)
+  kWalkTurns,   //!< walking while glancing aside: quick turns of 60-90 deg out and back
 };
-inline constexpr std::array<std::string_view, 4> kHeadMotionNames{"look-around", "walk",
-                                                                  "quick-turns", "room-loop"};
+inline constexpr std::array<std::string_view, 5> kHeadMotionNames{
+    "look-around", "walk", "quick-turns", "room-loop", "walk-turns"};
 [[nodiscard]] std::string_view to_string(HeadMotion motion);
 [[nodiscard]] std::optional<HeadMotion> head_motion_named(std::string_view name);
 
@@ -59,7 +60,7 @@ struct HeadMotionConfig {
   std::uint64_t seed = 1;          //!< phases of the sinusoids, the quick turns' schedule
   double still_start_s = 1.0;      //!< at rest from t = -inf to here
   double ramp_s = 1.5;             //!< then the motion fades in (quintic smooth step) over this
-  double peak_turn_deg_s = 300.0;  //!< quick-turns: peak angular rate of every turn
+  double peak_turn_deg_s = 300.0;  //!< quick-turns, walk-turns: peak angular rate of every turn
   double walk_speed_m_s = 1.25;    //!< walk, room-loop: speed along the path once ramped up
   /// quick-turns: the turn schedule is drawn up to this model time (later: the last pose holds
   /// apart from the slow sway).
@@ -95,7 +96,7 @@ class HeadMotionModel {
 
   [[nodiscard]] const HeadMotionConfig& config() const { return config_; }
   [[nodiscard]] const SyntheticRoom& room() const { return room_; }
-  /// quick-turns: the turns; empty for the other scenarios.
+  /// quick-turns, walk-turns: the turns; empty for the other scenarios.
   [[nodiscard]] const std::vector<QuickTurn>& turns() const { return turns_; }
   /// walk, room-loop: the time of one lap once at speed [s]; 0 for standing scenarios.
   [[nodiscard]] double lap_period_s() const;

@@ -55,10 +55,10 @@ enum class TrackingState : std::uint8_t {
 const char* to_string(TrackingState state);
 
 struct TrackerConfig {
-  int max_tracks = 300;         //!< features tracked per frame
-  int keyframe_points = 800;    //!< new map points a key-frame may add (tracked while room)
+  int max_tracks = 300;       //!< features tracked per frame
+  int keyframe_points = 800;  //!< new map points a key-frame may add (tracked while room)
   int max_map_points = 20000;
-  int max_keyframes = 128;      //!< key-frame records kept (a ring) for relocalisation
+  int max_keyframes = 128;  //!< key-frame records kept (a ring) for relocalisation
   int pyramid_levels = 3;
   double min_depth_m = 0.25, max_depth_m = 20.0;
   /// Beyond max_depth_m, points up to this depth are made only when a key-frame finds too few
@@ -75,30 +75,40 @@ struct TrackerConfig {
   double keyframe_angle_deg = 12.0;
   double keyframe_track_ratio = 0.5;  //!< fewer tracked points than this x max_tracks: key-frame
   int keyframe_min_frames = 5;  //!< ... but not sooner than this after the last (sparse scenes)
-  int min_initial_points = 30;        //!< a map needs this many stereo points to start
+  /// While the camera turns faster than this, a key-frame waits (the frame is blurred along
+  /// the turn: corners sit at the ends of their streaks, which would bias the new points and
+  /// the key-frame's observations) unless fewer than a quarter of max_tracks are tracked
+  /// [deg/s].
+  double keyframe_max_turn_deg_s = 60.0;
+  /// Motion blur: a frame turning faster than keyframe_max_turn_deg_s sees its points with
+  /// 1 + this x the excess rate [deg/s] pixels of error, in its pose (against the gyro's
+  /// rotation) and, for a key-frame, in bundle adjustment. The error is a bias along the turn,
+  /// not noise, so it is weighted down hard.
+  double blur_sigma_px_per_deg_s = 0.5;
+  int min_initial_points = 30;  //!< a map needs this many stereo points to start
   int stage2_radius_px = 8;
   int stage2_max_attempts = 200;
   int relocalise_radius_px = 24;
   int relocalise_max_points = 120;
-  int relocalise_candidates = 3;       //!< key-frames (by thumbnail) tried per lost frame
-  int relocalise_max_hamming = 64;     //!< descriptor distance of a match (of 256 bits)
-  float relocalise_ratio = 0.85f;      //!< best / second-best distance must be below
-  int relocalise_min_inliers = 25;     //!< an appearance relocalisation needs this many
+  int relocalise_candidates = 3;    //!< key-frames (by thumbnail) tried per lost frame
+  int relocalise_max_hamming = 64;  //!< descriptor distance of a match (of 256 bits)
+  float relocalise_ratio = 0.85f;   //!< best / second-best distance must be below
+  int relocalise_min_inliers = 25;  //!< an appearance relocalisation needs this many
   /// Lost this many frames in a row without relocalising: start a new map segment at the
   /// predicted pose (0: never).
   int new_segment_after_lost = 5;
   /// While lost, the pose is carried on by the motion model for this many frames, then held.
   int lost_extrapolate_frames = 5;
-  float max_patch_cost = 14.0f;   //!< zero-mean SAD per pixel accepted by the patch search
+  float max_patch_cost = 14.0f;  //!< zero-mean SAD per pixel accepted by the patch search
   /// A map point looked for (tracked in stage 1 or searched in stage 2) this many times and
   /// found in fewer than cull_found_ratio of them is dropped (moving objects, repeated texture,
   /// bad matches); the next key-frame's message tells the mapper.
   std::uint32_t cull_after_visible = 20;
   double cull_found_ratio = 0.25;
-  double depth_sigma_px = 0.5;    //!< disparity noise for a new point's depth uncertainty
+  double depth_sigma_px = 0.5;  //!< disparity noise for a new point's depth uncertainty
   /// How far the gyro's rotation since the last frame may be trusted (1 sigma) [deg]: the pose
   /// keeps the predicted rotation within about this (0: the gyro only seeds the search).
-  double gyro_rotation_sigma_deg = 0.001;
+  double gyro_rotation_sigma_deg = 0.01;
   DetectorParams detector{.bucket_px = 32};
   KltParams klt;
   StereoMatchParams stereo;
@@ -113,11 +123,11 @@ struct MapPoint {
   float sigma_m = 0.0f;            //!< position uncertainty (1 sigma, mostly along the ray)
   std::uint16_t observations = 0;  //!< key-frames that saw it
   bool alive = false;
-  std::int32_t keyframe = -1;      //!< the key-frame that made it
-  std::int32_t tracked_frame = -1; //!< last frame it was tracked in
+  std::int32_t keyframe = -1;            //!< the key-frame that made it
+  std::int32_t tracked_frame = -1;       //!< last frame it was tracked in
   std::uint32_t visible = 0, found = 0;  //!< frames it was looked for / found
-  Patch8 patch;                    //!< its look when made (rectified left image)
-  Descriptor256 descriptor;        //!< its appearance when made (for relocalisation)
+  Patch8 patch;                          //!< its look when made (rectified left image)
+  Descriptor256 descriptor;              //!< its appearance when made (for relocalisation)
   bool has_descriptor = false;
   /// Made beyond max_depth_m: its disparity is too small to trust, so it is used for its
   /// bearing only (no stereo residual in the pose or in bundle adjustment).
@@ -150,8 +160,10 @@ struct KeyframeMessage {
   std::int32_t id = -1;
   TimeNs t_ns = 0;
   SE3d T_world_cam = SE3d::Identity();
-  std::int32_t segment = 0;     //!< map segment (a new one starts after a lasting loss)
-  bool segment_start = false;   //!< the first key-frame of its segment (holds its gauge)
+  std::int32_t segment = 0;    //!< map segment (a new one starts after a lasting loss)
+  bool segment_start = false;  //!< the first key-frame of its segment (holds its gauge)
+  /// Its observations' noise [px]: 1, more when the camera was turning (motion blur).
+  float observation_sigma_px = 1.0f;
   FixedVector<KeyframeObservation> observations;
   FixedVector<NewMapPoint> new_points;
   /// Map points the tracker gave up on since the last key-frame (rarely found where predicted).
@@ -206,16 +218,16 @@ struct TrackResult {
   std::int64_t frame = 0;
   TrackingState state = TrackingState::kInitialising;
   SE3d T_world_cam = SE3d::Identity();  //!< rectified left camera in the world
-  int tracked = 0;      //!< stage-1 tracks that survived
-  int found = 0;        //!< stage-2 re-found points
+  int tracked = 0;                      //!< stage-1 tracks that survived
+  int found = 0;                        //!< stage-2 re-found points
   int inliers = 0;
   double rms_px = 0.0;
   int new_points = 0;
   bool keyframe = false;
   bool relocalised = false;
-  std::int32_t segment = 0;   //!< the map segment the pose belongs to
-  bool new_segment = false;   //!< this frame started a new segment (after a lasting loss)
-  bool map_full = false;      //!< a key-frame could not add every point: the map is full
+  std::int32_t segment = 0;        //!< the map segment the pose belongs to
+  bool new_segment = false;        //!< this frame started a new segment (after a lasting loss)
+  bool map_full = false;           //!< a key-frame could not add every point: the map is full
   bool keyframe_deferred = false;  //!< a key-frame was due but not allowed (mapper behind)
   /// Corrections or culls ignored since the last frame because they named an older generation.
   int stale_updates = 0;
