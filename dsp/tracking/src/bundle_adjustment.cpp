@@ -152,10 +152,33 @@ struct NormalEquations {
   std::size_t used = 0;
 };
 
+/// The pose prior of keyframe k: its error xi (T = exp(xi) T0, left perturbation, first
+/// order) and per-coordinate information.
+bool pose_prior(const BaKeyframe& k, const SE3d& T0, Vec6& xi, Vec6& info) {
+  if (!(k.prior_sigma_m > 0.0) || !(k.prior_sigma_rad > 0.0)) return false;
+  const SE3d d = k.T_cam_world * T0.inverse();
+  const Eigen::AngleAxisd aa(d.linear());
+  xi.head<3>() = d.translation();
+  xi.tail<3>() = aa.angle() * aa.axis();
+  info.head<3>().setConstant(1.0 / (k.prior_sigma_m * k.prior_sigma_m));
+  info.tail<3>().setConstant(1.0 / (k.prior_sigma_rad * k.prior_sigma_rad));
+  return true;
+}
+
+double prior_cost(const std::vector<BaKeyframe>& keyframes, const std::vector<SE3d>& initial) {
+  double cost = 0.0;
+  for (std::size_t k = 0; k < keyframes.size(); ++k) {
+    Vec6 xi, info;
+    if (keyframes[k].fixed || !pose_prior(keyframes[k], initial[k], xi, info)) continue;
+    cost += 0.5 * xi.dot(info.cwiseProduct(xi));
+  }
+  return cost;
+}
+
 NormalEquations linearize(const StereoIntrinsics& K, const std::vector<BaKeyframe>& keyframes,
                           const std::vector<BaPoint>& points,
                           std::span<const BaObservation> observations, const Layout& L,
-                          const Huber& huber) {
+                          const Huber& huber, const std::vector<SE3d>& initial) {
   NormalEquations ne;
   ne.U.assign(static_cast<std::size_t>(L.n_cams), Mat6::Zero());
   ne.g_cam.assign(static_cast<std::size_t>(L.n_cams), Vec6::Zero());
@@ -187,6 +210,14 @@ NormalEquations linearize(const StereoIntrinsics& K, const std::vector<BaKeyfram
     }
     ne.V[p].noalias() += w * lin.J_point.transpose() * lin.J_point;
     ne.g_point[p].noalias() += w * lin.J_point.transpose() * lin.residual_px;
+  }
+  for (std::size_t k = 0; k < keyframes.size(); ++k) {
+    const int c = L.cam_of_keyframe[k];
+    Vec6 xi, info;
+    if (c < 0 || !pose_prior(keyframes[k], initial[k], xi, info)) continue;
+    ne.U[static_cast<std::size_t>(c)].diagonal() += info;
+    ne.g_cam[static_cast<std::size_t>(c)] += info.cwiseProduct(xi);
+    ne.cost += 0.5 * xi.dot(info.cwiseProduct(xi));
   }
   ne.point_free.resize(points.size());
   for (std::size_t p = 0; p < points.size(); ++p) {
@@ -360,7 +391,10 @@ BaResult bundle_adjust(const StereoIntrinsics& K, std::vector<BaKeyframe>& keyfr
   const Huber huber{options.huber_px};
 
   BaResult result;
-  NormalEquations ne = linearize(K, keyframes, points, observations, L, huber);
+  std::vector<SE3d> initial;
+  initial.reserve(keyframes.size());
+  for (const BaKeyframe& k : keyframes) initial.push_back(k.T_cam_world);
+  NormalEquations ne = linearize(K, keyframes, points, observations, L, huber, initial);
   result.initial_cost = ne.cost;
   double lambda = options.initial_lambda;
   double nu = 2.0;  // Nielsen's growth factor for consecutive rejections
@@ -370,7 +404,7 @@ BaResult bundle_adjust(const StereoIntrinsics& K, std::vector<BaKeyframe>& keyfr
   bool stale = false;  // state moved since `ne` was built
   while (result.iterations < options.max_iterations) {
     if (stale) {
-      ne = linearize(K, keyframes, points, observations, L, huber);
+      ne = linearize(K, keyframes, points, observations, L, huber, initial);
       stale = false;
     }
     if (ne.cost <= 0.0) {
@@ -390,7 +424,7 @@ BaResult bundle_adjust(const StereoIntrinsics& K, std::vector<BaKeyframe>& keyfr
       pt_try = points;
       apply(step, L, kf_try, pt_try);
       const Evaluation ev = evaluate(K, kf_try, pt_try, observations, huber);
-      actual = ne.cost - ev.cost;
+      actual = ne.cost - (ev.cost + prior_cost(kf_try, initial));
       // A step that pushes points behind a camera drops terms: not comparable, reject it.
       accepted = actual > 0.0 && ev.used >= ne.used;
     }
@@ -413,7 +447,7 @@ BaResult bundle_adjust(const StereoIntrinsics& K, std::vector<BaKeyframe>& keyfr
     }
   }
   const Evaluation final_eval = evaluate(K, keyframes, points, observations, huber);
-  result.final_cost = final_eval.cost;
+  result.final_cost = final_eval.cost + prior_cost(keyframes, initial);
   result.outliers = final_eval.outliers;
   result.observations_used = final_eval.used;
   return result;

@@ -39,6 +39,7 @@ struct MapperKeyframe {
   bool segment_start = false;
   bool alive = true;
   float observation_sigma_px = 1.0f;
+  double travelled_m = 0.0;       // from the key-frame before it (of its segment)
   std::vector<PointSlot> points;  // what it saw (a slot whose generation moved on is gone)
 };
 
@@ -94,6 +95,11 @@ void Mapper::add_keyframe(const KeyframeMessage& message) {
   record.segment = message.segment;
   record.segment_start = message.segment_start;
   record.observation_sigma_px = std::max(1.0f, message.observation_sigma_px);
+  for (auto it = m.keyframes.rbegin(); it != m.keyframes.rend(); ++it) {
+    if (it->segment != record.segment) continue;
+    record.travelled_m = (it->T_world_cam.translation() - record.T_world_cam.translation()).norm();
+    break;
+  }
   for (const PointRef& ref : message.culled) {
     const auto it = m.point_index.find(ref.id);
     if (it == m.point_index.end()) continue;
@@ -189,8 +195,12 @@ MapperStats Mapper::Impl::adjust(const std::vector<int>& window, int iterations,
   std::vector<std::int32_t> keyframe_of_ba;
   const auto add = [&](int k, bool fixed) {
     ba_keyframe_of[static_cast<std::size_t>(k)] = static_cast<std::int32_t>(ba_keyframes.size());
-    ba_keyframes.push_back(
-        BaKeyframe{keyframes[static_cast<std::size_t>(k)].T_world_cam.inverse(), fixed});
+    BaKeyframe b{keyframes[static_cast<std::size_t>(k)].T_world_cam.inverse(), fixed};
+    const double travelled = keyframes[static_cast<std::size_t>(k)].travelled_m;
+    b.prior_sigma_m = config.keyframe_prior_m + config.keyframe_prior_m_per_m * travelled;
+    b.prior_sigma_rad =
+        (config.keyframe_prior_deg + config.keyframe_prior_deg_per_m * travelled) * M_PI / 180.0;
+    ba_keyframes.push_back(b);
     keyframe_of_ba.push_back(k);
   };
   // Each segment's first key-frame holds its gauge.

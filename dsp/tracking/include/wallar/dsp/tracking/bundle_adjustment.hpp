@@ -28,6 +28,10 @@ namespace wallar::dsp {
 struct BaKeyframe {
   SE3d T_cam_world;
   bool fixed = false;
+  /// A free keyframe's pose is also pulled toward where it started (its tracked pose) with
+  /// these 1-sigma spreads [m, rad] (0: no pull): a keyframe that shares few points with the
+  /// others cannot slide along a direction they leave flat (a turn traded for a sideways step).
+  double prior_sigma_m = 0.0, prior_sigma_rad = 0.0;
 };
 
 struct BaPoint {

@@ -35,6 +35,12 @@ struct MapperConfig {
   /// that share points with them still: bounded time however long the headset runs.
   int global_keyframes = 48;
   double huber_px = 1.5;
+  /// A key-frame an adjustment moves is held near its tracked pose with these spreads, plus
+  /// the per-metre growth times its distance from the key-frame before (the tracker's pose is
+  /// information too: it keeps a key-frame that shares few points from sliding along what they
+  /// leave unconstrained; tracked farther, it is trusted less).
+  double keyframe_prior_m = 0.02, keyframe_prior_deg = 0.2;
+  double keyframe_prior_m_per_m = 0.05, keyframe_prior_deg_per_m = 0.3;
   double cull_error_px = 4.0;  //!< mean reprojection error above which a point is culled
   int min_keyframes_for_ba = 2;
   /// A key-frame is redundant when this share of its points is seen by at least

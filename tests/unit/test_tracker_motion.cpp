@@ -1,0 +1,470 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file test_tracker_motion.cpp
+/// @brief The tracker on a moving rig: map point identity across culls (a stale correction
+/// never lands on an id's next point, also with the mapper on its own thread), exposure steps
+/// (Lucas-Kanade, patch search), descriptors, relocalisation away from key-frame poses, new map
+/// segments after a lasting loss, and the mapper's bounded map (redundant key-frames, points
+/// nobody sees again).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <vector>
+
+#include "wallar/dsp/eval/trajectory.hpp"
+#include "wallar/dsp/tracking/features.hpp"
+#include "wallar/dsp/tracking/klt.hpp"
+#include "wallar/dsp/tracking/mapper.hpp"
+#include "wallar/dsp/tracking/synthetic_room.hpp"
+#include "wallar/dsp/tracking/tracker.hpp"
+#include "wallar/firmware/tracking_and_mapping.hpp"
+
+namespace wallar {
+namespace {
+
+using dsp::SyntheticCamera;
+using dsp::SyntheticRoom;
+
+bool short_tests() { return std::getenv("WALLAR_SHORT_TESTS") != nullptr; }
+
+SyntheticRoom small_room(std::uint64_t texture_seed = 1) {
+  SyntheticRoom room;
+  room.x_min_m = -2.0;
+  room.x_max_m = 2.0;
+  room.y_min_m = -2.5;
+  room.y_max_m = 2.5;
+  room.z_max_m = 2.5;
+  room.texture_seed = texture_seed;
+  return room;
+}
+
+dsp::GrayView view(const Image& img) {
+  return {img.data(), img.width(), img.height(), img.stride_bytes()};
+}
+
+StereoFrame stereo(const SyntheticRoom& room, const SyntheticCamera& cam, const SE3d& T_world_cam,
+                   TimeNs t_ns) {
+  StereoFrame f;
+  f.t_ns = t_ns;
+  f.left.t_ns = f.right.t_ns = t_ns;
+  f.left.image = dsp::render_room_image(room, cam, T_world_cam, 0);
+  f.right.image = dsp::render_room_image(room, cam, T_world_cam, 1);
+  return f;
+}
+
+Image scaled(const Image& in, double gain, double bias) {
+  Image out = Image::allocate(in.width(), in.height(), PixelFormat::kGray8);
+  for (int y = 0; y < in.height(); ++y) {
+    const std::uint8_t* a = in.data() + std::ptrdiff_t{y} * in.stride_bytes();
+    std::uint8_t* b = out.mutable_data() + std::ptrdiff_t{y} * out.stride_bytes();
+    for (int x = 0; x < in.width(); ++x) {
+      b[x] = static_cast<std::uint8_t>(std::clamp(std::lround(gain * a[x] + bias), 0L, 255L));
+    }
+  }
+  return out;
+}
+
+Image black(int w, int h) {
+  Image img = Image::allocate(w, h, PixelFormat::kGray8);
+  std::fill_n(img.mutable_data(), static_cast<std::size_t>(w * h), std::uint8_t{0});
+  return img;
+}
+
+double angle_deg(const Eigen::Matrix3d& R) { return Eigen::AngleAxisd(R).angle() * 180.0 / M_PI; }
+
+// --- Exposure steps and appearance --------------------------------------------------------------
+
+TEST(TrackerExposure, LucasKanadeFollowsAShiftThroughAGainStep) {
+  const SyntheticRoom room = small_room();
+  const SyntheticCamera cam;
+  const SE3d T0 = dsp::synthetic_trajectory(room, 1, 10.0)[0].T_world_body;
+  const Image left = dsp::render_room_image(room, cam, T0, 0);
+  // The right image with the exposure up 60 % and the black level down (clipped at 0 and 255).
+  const Image right = scaled(dsp::render_room_image(room, cam, T0, 1), 1.6, -30.0);
+  dsp::Pyramid prev(cam.width_px, cam.height_px, 3), cur(cam.width_px, cam.height_px, 3);
+  prev.build(view(left));
+  cur.build(view(right));
+  dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
+  std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
+  dsp::FixedVector<dsp::Corner> corners(300);
+  detector.detect(view(left), occupancy, corners);
+  // The brightness relation from samples at corresponding places (the true disparity here; the
+  // tracker uses the predicted ones).
+  std::vector<float> a, b;
+  std::vector<double> disparity;
+  for (const dsp::Corner& c : corners) {
+    const Eigen::Vector3d ray((c.u_px - cam.cx_px) / cam.f_px, (c.v_px - cam.cy_px) / cam.f_px,
+                              1.0);
+    const auto hit = dsp::ray_hit(room, T0.translation(), T0.linear() * ray);
+    const double d = cam.f_px * cam.baseline_m / hit->range;
+    disparity.push_back(d);
+    const dsp::GrayView P = prev.level(2), C = cur.level(2);
+    const float px = (c.u_px + 0.5f) / 4 - 0.5f, py = (c.v_px + 0.5f) / 4 - 0.5f;
+    const float cx = (c.u_px - static_cast<float>(d) + 0.5f) / 4 - 0.5f;
+    if (P.inside(px, py, 1) && C.inside(cx, py, 1)) {
+      a.push_back(P.sample(px, py));
+      b.push_back(C.sample(cx, py));
+    }
+  }
+  const dsp::Brightness brightness = dsp::estimate_brightness(a, b);
+  EXPECT_NEAR(brightness.gain, 1.6, 0.15);
+  const auto count_good = [&](const dsp::Brightness& model) {
+    int good = 0;
+    for (std::size_t i = 0; i < corners.size(); ++i) {
+      const dsp::Corner& c = corners[i];
+      float u = c.u_px, v = c.v_px;
+      if (!dsp::klt_track(prev, cur, c.u_px, c.v_px, u, v, {}, model)) continue;
+      good += std::abs((c.u_px - u) - disparity[i]) < 0.3 && std::abs(v - c.v_px) < 0.3 ? 1 : 0;
+    }
+    return good;
+  };
+  const int with = count_good(brightness), without = count_good({});
+  std::printf(
+      "gain step: %d of %zu corners tracked to 0.3 px with the brightness model, %d without\n",
+      with, corners.size(), without);
+  EXPECT_GT(with, static_cast<int>(corners.size()) / 2);
+  EXPECT_GT(with, without + static_cast<int>(corners.size()) / 10);
+}
+
+TEST(TrackerExposure, PatchSearchIgnoresGainAndRefusesAFlatWindow) {
+  const SyntheticRoom room = small_room();
+  const SyntheticCamera cam;
+  const SE3d T0 = dsp::synthetic_trajectory(room, 1, 10.0)[0].T_world_body;
+  const Image img = dsp::render_room_image(room, cam, T0, 0);
+  const Image brighter = scaled(img, 1.5, 10.0);
+  dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
+  std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
+  dsp::FixedVector<dsp::Corner> corners(100);
+  detector.detect(view(img), occupancy, corners);
+  int found = 0, tried = 0;
+  for (const dsp::Corner& c : corners) {
+    dsp::Patch8 patch;
+    if (!dsp::extract_patch(view(img), c.u_px, c.v_px, patch)) continue;
+    ++tried;
+    float cost = 0.0f;
+    const float u0 = std::round(c.u_px), v0 = std::round(c.v_px);
+    const auto hit = dsp::search_patch(view(brighter), patch, u0 + 3.0f, v0 - 2.0f, 8, &cost);
+    found +=
+        hit && std::abs(hit->first - u0) < 0.6f && std::abs(hit->second - v0) < 0.6f && cost < 8.0f
+            ? 1
+            : 0;
+  }
+  EXPECT_GT(found, tried * 8 / 10);
+  // A frame gone dark: nothing there to match, whatever the patch.
+  const Image dark = black(cam.width_px, cam.height_px);
+  dsp::Patch8 patch;
+  ASSERT_TRUE(dsp::extract_patch(view(img), corners[0].u_px, corners[0].v_px, patch));
+  EXPECT_FALSE(dsp::search_patch(view(dark), patch, corners[0].u_px, corners[0].v_px, 8, nullptr));
+}
+
+TEST(TrackerExposure, DescriptorsOfOnePlaceAgreeAcrossViewsAndDifferElsewhere) {
+  const SyntheticRoom room = small_room();
+  const SyntheticCamera cam;
+  const std::vector<StampedPose> path = dsp::synthetic_trajectory(room, 40, 10.0);
+  const SE3d Ta = path[0].T_world_body, Tb = path[30].T_world_body;  // 3 s apart
+  ASSERT_GT(angle_deg(Ta.linear().transpose() * Tb.linear()), 5.0);
+  const Image ia = dsp::render_room_image(room, cam, Ta, 0),
+              ib = dsp::render_room_image(room, cam, Tb, 0);
+  dsp::Pyramid pa(cam.width_px, cam.height_px, 2), pb(cam.width_px, cam.height_px, 2);
+  pa.build(view(ia));
+  pb.build(view(ib));
+  dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
+  std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
+  dsp::FixedVector<dsp::Corner> corners(400);
+  detector.detect(view(ia), occupancy, corners);
+  std::vector<int> same, other;
+  std::vector<dsp::Descriptor256> in_b;
+  for (const dsp::Corner& c : corners) {
+    const Eigen::Vector3d ray((c.u_px - cam.cx_px) / cam.f_px, (c.v_px - cam.cy_px) / cam.f_px,
+                              1.0);
+    const auto hit = dsp::ray_hit(room, Ta.translation(), Ta.linear() * ray);
+    const Eigen::Vector3d p_b = Tb.inverse() * hit->p_world;
+    if (p_b.z() < 0.3) continue;
+    const double ub = cam.f_px * p_b.x() / p_b.z() + cam.cx_px,
+                 vb = cam.f_px * p_b.y() / p_b.z() + cam.cy_px;
+    dsp::Descriptor256 da, db;
+    if (!dsp::compute_descriptor(pa.level(1), c.u_px, c.v_px, da) ||
+        !dsp::compute_descriptor(pb.level(1), static_cast<float>(ub), static_cast<float>(vb), db)) {
+      continue;
+    }
+    same.push_back(dsp::hamming_distance(da, db));
+    if (!in_b.empty()) other.push_back(dsp::hamming_distance(da, in_b.back()));
+    in_b.push_back(db);
+  }
+  ASSERT_GT(same.size(), 50u);
+  std::sort(same.begin(), same.end());
+  std::sort(other.begin(), other.end());
+  const int same_median = same[same.size() / 2], other_median = other[other.size() / 2];
+  std::printf("descriptors: same place median %d bits, other places %d bits (of 256)\n",
+              same_median, other_median);
+  EXPECT_LT(same_median, 64);
+  EXPECT_GT(other_median, 100);
+}
+
+// --- Map point identity --------------------------------------------------------------------------
+
+/// A tracker and its mapper in lock step over the start of the rendered room's path.
+struct LockStep {
+  SyntheticRoom room = small_room();
+  SyntheticCamera cam;
+  std::vector<StampedPose> path;
+  dsp::Tracker tracker;
+  dsp::Mapper mapper;
+  dsp::MapCorrection correction{20000, 256};
+  std::size_t next = 0;
+
+  explicit LockStep(const dsp::TrackerConfig& config = {})
+      : path(dsp::synthetic_trajectory(room, 200, 10.0)),
+        tracker(dsp::synthetic_rig(cam), config),
+        mapper(tracker.intrinsics()) {}
+  dsp::TrackResult step() {
+    const StampedPose& p = path[next++];
+    const StereoFrame f = stereo(room, cam, p.T_world_body, p.t_ns);
+    const dsp::TrackResult r = tracker.track(p.t_ns, f.left.image, f.right.image);
+    if (const dsp::KeyframeMessage* kf = tracker.pending_keyframe()) {
+      mapper.add_keyframe(*kf);
+      mapper.local_adjust(correction);
+      tracker.apply(correction);
+    }
+    return r;
+  }
+};
+
+TEST(TrackerIdentity, AStaleCorrectionOrCullNeverLandsOnTheIdsNextPoint) {
+  LockStep s;
+  for (int i = 0; i < 3; ++i) ASSERT_EQ(s.step().state, dsp::TrackingState::kTracking);
+  // A live point, and a correction for it as a mapping thread would hold it.
+  std::int32_t id = -1;
+  for (std::size_t i = 0; i < s.tracker.map_points().size(); ++i) {
+    if (s.tracker.map_points()[i].alive) id = static_cast<std::int32_t>(i);
+  }
+  ASSERT_GE(id, 0);
+  const dsp::MapPoint old_point = s.tracker.map_points()[static_cast<std::size_t>(id)];
+  dsp::MapCorrection stale(16, 4);
+  stale.points.push_back(
+      {id, old_point.generation, old_point.p_world + Eigen::Vector3d(0.5, 0.5, 0.5), 0.01f});
+  // Meanwhile the point is culled (the mapper's own verdict) and its id freed ...
+  dsp::MapCorrection cull(16, 4);
+  cull.culled.push_back({id, old_point.generation});
+  s.tracker.apply(cull);
+  EXPECT_FALSE(s.tracker.map_points()[static_cast<std::size_t>(id)].alive);
+  // ... and the next key-frame makes a new point in the same slot.
+  for (int i = 0; i < 40 && !s.tracker.map_points()[static_cast<std::size_t>(id)].alive; ++i) {
+    s.step();
+  }
+  const dsp::MapPoint reborn = s.tracker.map_points()[static_cast<std::size_t>(id)];
+  ASSERT_TRUE(reborn.alive) << "no key-frame reused the freed id";
+  EXPECT_EQ(reborn.generation, old_point.generation + 1);
+  // The stale correction and a stale cull arrive now: neither touches the new point.
+  s.tracker.apply(stale);
+  dsp::MapCorrection stale_cull(16, 4);
+  stale_cull.culled.push_back({id, old_point.generation});
+  s.tracker.apply(stale_cull);
+  const dsp::MapPoint after = s.tracker.map_points()[static_cast<std::size_t>(id)];
+  EXPECT_TRUE(after.alive);
+  EXPECT_EQ(after.p_world, reborn.p_world);
+  EXPECT_EQ(s.step().stale_updates, 2);
+  // The mapper ignores a cull of the old generation too (it holds the new point).
+  dsp::KeyframeMessage msg(8, 8);
+  msg.id = 10000;
+  msg.T_world_cam = SE3d::Identity();
+  msg.culled.push_back({id, old_point.generation});
+  const std::uint64_t stale_before = s.mapper.stale_messages();
+  const dsp::MapSnapshot before = s.mapper.snapshot();
+  s.mapper.add_keyframe(msg);
+  EXPECT_EQ(s.mapper.stale_messages(), stale_before + 1);
+  const dsp::MapSnapshot now = s.mapper.snapshot();
+  EXPECT_NE(std::find(now.point_ids.begin(), now.point_ids.end(), id), now.point_ids.end());
+  EXPECT_EQ(now.points.size(), before.points.size());
+}
+
+TEST(TrackerIdentity, MappingOnItsThreadWhileIdsAreReusedKeepsThePointsOnTheRoom) {
+  // A small map that culls eagerly: ids come back while the mapping thread still adjusts their
+  // previous points. Whatever the interleaving, no point may end up off the room's surfaces
+  // (a correction for an id's previous point would put it where that point was).
+  const SyntheticRoom room = small_room();
+  const SyntheticCamera cam;
+  firmware::TrackingOptions options;
+  options.tracker.max_map_points = 900;
+  options.tracker.keyframe_points = 300;
+  options.tracker.cull_after_visible = 4;
+  options.tracker.cull_found_ratio = 0.6;
+  options.tracker.keyframe_distance_ratio = 0.05;
+  options.mapping_thread = true;
+  firmware::TrackingAndMapping system(dsp::synthetic_rig(cam), options);
+  const std::vector<StampedPose> path =
+      dsp::synthetic_trajectory(room, short_tests() ? 40 : 100, 5.0);
+  int tracked = 0;
+  for (const StampedPose& p : path) {
+    tracked += system.on_stereo(stereo(room, cam, p.T_world_body, p.t_ns)).state ==
+                       dsp::TrackingState::kTracking
+                   ? 1
+                   : 0;
+  }
+  const auto map = system.finish();
+  const firmware::TrackingCounters c = system.counters();
+  std::printf(
+      "ids reused under a mapping thread: %llu key-frames, %llu culled, %llu stale "
+      "updates ignored, %d of %zu frames tracked\n",
+      static_cast<unsigned long long>(c.keyframes),
+      static_cast<unsigned long long>(c.culled_points),
+      static_cast<unsigned long long>(c.stale_updates), tracked, path.size());
+  EXPECT_EQ(tracked, static_cast<int>(path.size()));
+  ASSERT_TRUE(map != nullptr);
+  const SE3d T_world0 = path.front().T_world_body;
+  std::vector<double> distance;
+  for (const dsp::MapPoint& p : system.tracker().map_points()) {
+    if (p.alive) distance.push_back(room.distance_to_nearest_surface(T_world0 * p.p_world));
+  }
+  ASSERT_GT(distance.size(), 200u);
+  std::sort(distance.begin(), distance.end());
+  EXPECT_LT(distance[distance.size() / 2], 0.01);
+  EXPECT_LT(distance[distance.size() * 95 / 100], 0.10);
+}
+
+// --- Relocalisation and segments -----------------------------------------------------------------
+
+TEST(TrackerRelocalisation, ByAppearanceAwayFromEveryKeyframePose) {
+  dsp::TrackerConfig config;
+  LockStep s(config);
+  for (int i = 0; i < 30; ++i) ASSERT_EQ(s.step().state, dsp::TrackingState::kTracking);
+  // The lights go out: lost.
+  const Image dark = black(s.cam.width_px, s.cam.height_px);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_EQ(s.tracker.track(s.path[30].t_ns + i, dark, dark).state, dsp::TrackingState::kLost);
+  }
+  // Back on at a pose no key-frame had: 25 cm aside, turned 25 deg (beyond what a search by
+  // patches around the key-frames' poses reaches).
+  const SE3d T_world0 = s.path.front().T_world_body;
+  SE3d T = s.path[15].T_world_body;
+  T.translation() += T.linear() * Eigen::Vector3d(0.25, 0.05, 0.0);
+  T.linear() = T.linear() *
+               Eigen::AngleAxisd(25.0 * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  const StereoFrame f = stereo(s.room, s.cam, T, s.path[31].t_ns);
+  const dsp::TrackResult r = s.tracker.track(f.t_ns, f.left.image, f.right.image);
+  ASSERT_EQ(r.state, dsp::TrackingState::kTracking);
+  EXPECT_TRUE(r.relocalised);
+  const SE3d truth = T_world0.inverse() * T;  // in the tracker's world (its first camera)
+  EXPECT_LT((r.T_world_cam.translation() - truth.translation()).norm(), 0.02);
+  EXPECT_LT(angle_deg(r.T_world_cam.linear().transpose() * truth.linear()), 0.5);
+  // Acceptance: a view of a room the map never saw is not taken for a place in it.
+  const SyntheticRoom elsewhere = small_room(99);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_EQ(s.tracker.track(s.path[32].t_ns + i, dark, dark).state, dsp::TrackingState::kLost);
+  }
+  const StereoFrame g = stereo(elsewhere, s.cam, s.path[20].T_world_body, s.path[33].t_ns);
+  EXPECT_FALSE(s.tracker.track(g.t_ns, g.left.image, g.right.image).relocalised);
+}
+
+TEST(TrackerSegments, ALastingLossStartsANewSegmentWhereTheMotionCarriedThePose) {
+  dsp::TrackerConfig config;
+  LockStep s(config);
+  const SE3d T_world0 = s.path.front().T_world_body;
+  for (int i = 0; i < 20; ++i) ASSERT_EQ(s.step().state, dsp::TrackingState::kTracking);
+  // The room changes its look (another texture, same walls): nothing to track or relocalise
+  // against. After new_segment_after_lost frames a new map starts there.
+  const SyntheticRoom other = small_room(7);
+  int lost = 0, segments = 0;
+  dsp::TrackResult r;
+  std::size_t k = 20;
+  for (; k < 40; ++k) {
+    const StereoFrame f = stereo(other, s.cam, s.path[k].T_world_body, s.path[k].t_ns);
+    r = s.tracker.track(f.t_ns, f.left.image, f.right.image);
+    lost += r.state == dsp::TrackingState::kLost ? 1 : 0;
+    if (r.new_segment) {
+      ++segments;
+      // The new segment starts where the motion model carried the pose: continuous output.
+      const SE3d truth = T_world0.inverse() * s.path[k].T_world_body;
+      EXPECT_LT((r.T_world_cam.translation() - truth.translation()).norm(), 0.05);
+      EXPECT_LT(angle_deg(r.T_world_cam.linear().transpose() * truth.linear()), 3.0);
+      break;
+    }
+  }
+  EXPECT_EQ(segments, 1);
+  EXPECT_EQ(lost, config.new_segment_after_lost);
+  EXPECT_EQ(r.segment, 1);
+  // It tracks on in the new segment, its motion the room's.
+  const SE3d start_est = r.T_world_cam, start_truth = s.path[k].T_world_body;
+  for (std::size_t j = k + 1; j < k + 20; ++j) {
+    const StereoFrame f = stereo(other, s.cam, s.path[j].T_world_body, s.path[j].t_ns);
+    r = s.tracker.track(f.t_ns, f.left.image, f.right.image);
+    ASSERT_EQ(r.state, dsp::TrackingState::kTracking) << "frame " << j;
+  }
+  const SE3d moved_est = start_est.inverse() * r.T_world_cam;
+  const SE3d moved_truth = start_truth.inverse() * s.path[k + 19].T_world_body;
+  EXPECT_LT((moved_est.translation() - moved_truth.translation()).norm(), 0.01);
+}
+
+// --- The mapper's bounded map ----------------------------------------------------------------
+
+/// Key-frame messages of a camera at `T_world_cam` seeing `points` (exact stereo projections).
+dsp::KeyframeMessage message_at(std::int32_t id, const SE3d& T_world_cam,
+                                const std::vector<Eigen::Vector3d>& points, std::int32_t first,
+                                std::int32_t count, bool new_points,
+                                const dsp::StereoIntrinsics& K) {
+  dsp::KeyframeMessage m(points.size(), points.size());
+  m.id = id;
+  m.t_ns = id;
+  m.T_world_cam = T_world_cam;
+  m.segment_start = id == 0;
+  const SE3d T_cw = T_world_cam.inverse();
+  for (std::int32_t i = first; i < first + count; ++i) {
+    const Eigen::Vector3d uvr = K.project(T_cw * points[static_cast<std::size_t>(i)]);
+    m.observations.push_back({i, 1, static_cast<float>(uvr.x()), static_cast<float>(uvr.y()),
+                              static_cast<float>(uvr.z())});
+    if (new_points) m.new_points.push_back({i, 1, points[static_cast<std::size_t>(i)], 0.01f});
+  }
+  return m;
+}
+
+TEST(MapperBounds, AHeadStayingPutMakesRedundantKeyframesThatAreDropped) {
+  const dsp::StereoIntrinsics K{450.0, 376.0, 240.0, 0.11};
+  std::vector<Eigen::Vector3d> pts;
+  for (int i = 0; i < 300; ++i) {
+    pts.emplace_back(-1.5 + 3.0 * (i % 20) / 19.0, -1.0 + 2.0 * (i / 20) / 14.0,
+                     3.0 + 0.5 * (i % 3));
+  }
+  dsp::Mapper mapper(K);
+  dsp::MapCorrection out(1000, 256);
+  int max_adjusted = 0;
+  for (int k = 0; k < 60; ++k) {
+    SE3d T = SE3d::Identity();
+    T.translation() = Eigen::Vector3d(0.01 * std::sin(k), 0.005 * std::cos(k), 0.0);  // a sway
+    mapper.add_keyframe(message_at(k, T, pts, 0, 300, k == 0, K));
+    const dsp::MapperStats s = mapper.local_adjust(out);
+    max_adjusted = std::max(max_adjusted, s.adjusted_keyframes);
+  }
+  std::printf("60 key-frames of one view: %d kept, %llu dropped as redundant\n",
+              mapper.keyframe_count(), static_cast<unsigned long long>(mapper.culled_keyframes()));
+  EXPECT_LE(mapper.keyframe_count(), 12);
+  EXPECT_GE(mapper.culled_keyframes(), 48u);
+  EXPECT_EQ(mapper.points_count(), 300);  // the points stay (others see them)
+  EXPECT_LE(max_adjusted, dsp::MapperConfig{}.local_keyframes);
+}
+
+TEST(MapperBounds, PointsNoLaterKeyframeSeesAreDropped) {
+  const dsp::StereoIntrinsics K{450.0, 376.0, 240.0, 0.11};
+  std::vector<Eigen::Vector3d> pts;
+  for (int i = 0; i < 200; ++i) {
+    pts.emplace_back(-1.5 + 3.0 * (i % 20) / 19.0, -1.0 + 2.0 * (i / 20) / 9.0, 3.0);
+  }
+  dsp::Mapper mapper(K);
+  dsp::MapCorrection out(1000, 256);
+  // Key-frame 0 makes 200 points; the next ones see only the first 100 of them.
+  mapper.add_keyframe(message_at(0, SE3d::Identity(), pts, 0, 200, true, K));
+  std::size_t culled = 0;
+  for (int k = 1; k <= dsp::MapperConfig{}.confirm_keyframes; ++k) {
+    SE3d T = SE3d::Identity();
+    T.translation().x() = 0.2 * k;
+    mapper.add_keyframe(message_at(k, T, pts, 0, 100, false, K));
+    mapper.local_adjust(out);
+    culled += out.culled.size();
+    for (const dsp::PointRef& r : out.culled) EXPECT_GE(r.id, 100);
+  }
+  EXPECT_EQ(culled, 100u);
+  EXPECT_EQ(mapper.points_count(), 100);
+}
+
+}  // namespace
+}  // namespace wallar
