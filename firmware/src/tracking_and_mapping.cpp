@@ -113,11 +113,13 @@ dsp::RotationPrior TrackingAndMapping::gyro_prior(TimeNs t_ns) {
   const Eigen::Quaterniond q_rect_imu(T_rect_imu_.linear());
   prior.q_prev_cur = (q_rect_imu * delta.q_start_end * q_rect_imu.conjugate()).normalized();
   prior.valid = true;
+  prior.bias_corrected = gyro_bias_known_;
   return prior;
 }
 
 void TrackingAndMapping::set_gyro_bias(const Eigen::Vector3d& bias_rad_s) {
   gyro_bias_rad_s_ = bias_rad_s;
+  gyro_bias_known_ = true;
 }
 
 dsp::TrackResult TrackingAndMapping::on_stereo(const StereoFrame& frame) {

@@ -932,7 +932,7 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
   } else {
     // Prediction: constant velocity, with the gyro's rotation when given.
     const SE3d prior = predict_camera_pose(m.T_cw, m.velocity, gyro);
-    m.gyro_prior_valid = gyro.valid;
+    m.gyro_prior_valid = gyro.valid && gyro.bias_corrected;
     // The turn rate this frame (the prediction's: the gyro's when it has one).
     const double dt_s = m.last_t_ns > 0 && t_ns > m.last_t_ns ? ns_to_s(t_ns - m.last_t_ns) : 0.0;
     m.turn_rate_deg_s =

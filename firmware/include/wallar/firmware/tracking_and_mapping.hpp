@@ -105,6 +105,7 @@ class TrackingAndMapping {
   SE3d T_rect_imu_ = SE3d::Identity();
   std::int64_t timeshift_cam_imu_ns_ = 0;  //!< t_imu = t_cam + this
   Eigen::Vector3d gyro_bias_rad_s_ = Eigen::Vector3d::Zero();
+  bool gyro_bias_known_ = false;  //!< set_gyro_bias() was called
   SpscRing<dsp::KeyframeMessage> keyframes_;
   SpscRing<dsp::MapCorrection> corrections_;
   dsp::MapCorrection lockstep_correction_;

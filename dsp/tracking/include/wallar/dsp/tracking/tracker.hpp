@@ -242,6 +242,10 @@ struct TrackResult {
 struct RotationPrior {
   bool valid = false;
   Eigen::Quaterniond q_prev_cur = Eigen::Quaterniond::Identity();
+  /// The rates were corrected by a known gyro bias: the rotation may hold the pose
+  /// (TrackerConfig::gyro_rotation_sigma_deg). Otherwise it only seeds the search (a bias of
+  /// a few deg/s would turn a still camera).
+  bool bias_corrected = false;
 };
 
 /// The predicted pose (T_cam_world) of the next frame from the last one, `T_cw_last`, and the
