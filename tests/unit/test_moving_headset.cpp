@@ -26,7 +26,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-bool short_tests() { return std::getenv("WALLAR_SHORT_TESTS") != nullptr; }
+using test::short_tests;
 
 struct TrackedRun {
   std::size_t frames = 0, tracked = 0;
@@ -89,10 +89,7 @@ TEST(MovingHeadset, WalkingWithQuickGlancesIsTrackedEveryFrameWithTheGyro) {
 /// the IMU of the whole run: the tracker and mapper (lock step, as the offline commands run
 /// them) see minutes of walking without minutes of rendering.
 TEST(ApplianceSoak, TenMinutesOfLapsThroughOneRoomStayWithinTheMapsCapacities) {
-  if (short_tests()) GTEST_SKIP() << "ten minutes of tracking: host builds only";
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-  GTEST_SKIP() << "ten minutes of tracking: not under sanitizers";
-#endif
+  if (short_tests()) GTEST_SKIP() << "ten minutes of tracking: host builds without sanitizers only";
   const dsp::SyntheticRoom room = dsp::headset_room(3);
   dsp::HeadMotionConfig mc;
   mc.motion = dsp::HeadMotion::kRoomLoop;

@@ -26,7 +26,7 @@ namespace {
 
 using test::TempDir;
 namespace fs = std::filesystem;
-constexpr double kDeg = M_PI / 180.0;
+constexpr double kRadPerDeg = M_PI / 180.0;
 
 HeadMotionModel model_of(HeadMotion motion, std::uint64_t seed = 1, double peak = 300.0) {
   HeadMotionConfig c;
@@ -111,7 +111,7 @@ TEST(SyntheticMotion, ImuIntegratesBackToTheTrajectory) {
       worst_angle = std::max(worst_angle, angle_between(R, truth.T_world_body.linear()));
     }
     EXPECT_LT(worst_accel, 1e-9) << to_string(m);
-    EXPECT_LT(worst_angle, 0.02 * kDeg) << to_string(m) << ": gyro integration over 8 s";
+    EXPECT_LT(worst_angle, 0.02 * kRadPerDeg) << to_string(m) << ": gyro integration over 8 s";
     EXPECT_LT(worst_pos, 0.01) << to_string(m) << ": position over 4 s";
   }
 }
@@ -126,20 +126,20 @@ TEST(SyntheticMotion, QuickTurnsPeakAtTheRequestedRate) {
       for (double t = turn.t_start_s; t <= turn.t_start_s + turn.duration_s; t += 1e-3) {
         peak = std::max(peak, model.state(t).omega_body_rad_s.norm());
       }
-      EXPECT_NEAR(peak / kDeg, peak_deg_s, 0.05 * peak_deg_s) << "turn at " << turn.t_start_s;
-      EXPECT_GE(std::abs(turn.yaw_rad), 59.0 * kDeg);
+      EXPECT_NEAR(peak / kRadPerDeg, peak_deg_s, 0.05 * peak_deg_s) << "turn at " << turn.t_start_s;
+      EXPECT_GE(std::abs(turn.yaw_rad), 59.0 * kRadPerDeg);
     }
     // Between turns the head is nearly still: a turn is a distinct event.
     const QuickTurn& first = model.turns()[0];
     const QuickTurn& second = model.turns()[1];
     const double between = 0.5 * (first.t_start_s + first.duration_s + second.t_start_s);
-    EXPECT_LT(model.state(between).omega_body_rad_s.norm(), 10.0 * kDeg);
+    EXPECT_LT(model.state(between).omega_body_rad_s.norm(), 10.0 * kRadPerDeg);
     // The gyro sees the same peak (1 kHz samples).
     double gyro_peak = 0.0;
     for (const SyntheticImuRow& r : perfect_imu(model, 1000.0, 12.0)) {
       gyro_peak = std::max(gyro_peak, r.sample.gyro_rad_s.norm());
     }
-    EXPECT_NEAR(gyro_peak / kDeg, peak_deg_s, 0.05 * peak_deg_s);
+    EXPECT_NEAR(gyro_peak / kRadPerDeg, peak_deg_s, 0.05 * peak_deg_s);
   }
 }
 
@@ -196,7 +196,7 @@ TEST(SyntheticMotion, RoomLoopLapsRepeat) {
   const HeadMotionModel walk = model_of(HeadMotion::kWalk, 4);
   EXPECT_GT(angle_between(walk.T_world_body(4.0).linear(),
                           walk.T_world_body(4.0 + walk.lap_period_s()).linear()),
-            2.0 * kDeg);
+            2.0 * kRadPerDeg);
 }
 
 // White noise with sigma = density * sqrt(rate) per axis, bias steps with sigma = random walk /
@@ -348,7 +348,7 @@ TEST(SyntheticImaging, BlurLowersGradientEnergyOnAFastTurnOnly) {
   const Frame b = form(model, cam, mid_turn, blurred);
   // 300 deg/s for 8 ms at f = 225 px: 9.4 px of motion at the centre, up to 1.5x that at the
   // image's sides; a sub-frame per 2 px of it.
-  const double centre_px = 300.0 * kDeg * 0.008 * 225.0;
+  const double centre_px = 300.0 * kRadPerDeg * 0.008 * 225.0;
   EXPECT_GT(b.info.motion_px, centre_px);
   EXPECT_LT(b.info.motion_px, 1.7 * centre_px);
   EXPECT_EQ(b.info.blur_samples, static_cast<int>(std::ceil(b.info.motion_px / 2.0)));
@@ -519,8 +519,8 @@ TEST(SynthRigRecording, ReadsBackWithTheTimeOffsetBetweenImuAndGroundTruth) {
   Eigen::Matrix3d R_cam_imu_nominal;
   R_cam_imu_nominal << 0, -1, 0, 0, 0, -1, 1, 0, 0;
   const double mounting = angle_between(rec.rig().T_cam0_imu().linear(), R_cam_imu_nominal);
-  EXPECT_GT(mounting, 0.5 * kDeg);
-  EXPECT_LT(mounting, 2.0 * kDeg);
+  EXPECT_GT(mounting, 0.5 * kRadPerDeg);
+  EXPECT_LT(mounting, 2.0 * kRadPerDeg);
   EXPECT_GT(rec.rig().T_cam0_imu().translation().norm(), 0.02);  // the IMU is cm from cam0
   EXPECT_DOUBLE_EQ(rec.imu_calib.rate_hz, 1000.0);
   EXPECT_DOUBLE_EQ(rec.imu_calib.gyro_noise_density, default_headset_rig().imu.gyro_noise_density);

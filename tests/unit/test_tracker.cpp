@@ -5,13 +5,15 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <cstdlib>
-#include <filesystem>
 #include <atomic>
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
 #include <thread>
 #include <vector>
 
+#include "test_support.hpp"
+#include "tracking_support.hpp"
 #include "wallar/core/error.hpp"
 #include "wallar/core/spsc_ring.hpp"
 #include "wallar/drivers/recording/euroc.hpp"
@@ -58,11 +60,7 @@ Image filled(int width, int height, std::uint8_t value) {
   return img;
 }
 
-dsp::GrayView view(const Image& img) {
-  return {img.data(), img.width(), img.height(), img.stride_bytes()};
-}
-
-
+using test::gray_view;
 
 // --- Parts -------------------------------------------------------------------------------------
 
@@ -78,12 +76,14 @@ TEST(TrackerParts, CornersAreSpreadOverBucketsAndCapped) {
   std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
   occupancy[0] = 3;  // a bucket already full of tracks gets nothing new
   dsp::FixedVector<dsp::Corner> corners(2000);
-  detector.detect(view(img), occupancy, corners);
+  detector.detect(gray_view(img), occupancy, corners);
   std::vector<int> per_bucket(static_cast<std::size_t>(detector.bucket_count()), 0);
-  for (const dsp::Corner& c : corners) ++per_bucket[static_cast<std::size_t>(detector.bucket_of(c.u_px, c.v_px))];
+  for (const dsp::Corner& c : corners)
+    ++per_bucket[static_cast<std::size_t>(detector.bucket_of(c.u_px, c.v_px))];
   EXPECT_EQ(per_bucket[0], 0);
   EXPECT_LE(*std::max_element(per_bucket.begin(), per_bucket.end()), 3);
-  const auto filled_buckets = std::count_if(per_bucket.begin(), per_bucket.end(), [](int n) { return n > 0; });
+  const auto filled_buckets =
+      std::count_if(per_bucket.begin(), per_bucket.end(), [](int n) { return n > 0; });
   EXPECT_GT(filled_buckets, detector.bucket_count() * 3 / 4);
   for (const dsp::Corner& c : corners) EXPECT_GE(c.shi_tomasi, params.min_shi_tomasi);
 }
@@ -94,7 +94,7 @@ TEST(TrackerParts, TheThresholdAdaptsToABlankImage) {
   std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
   dsp::FixedVector<dsp::Corner> corners(100);
   const int before = detector.threshold();
-  for (int i = 0; i < 10; ++i) detector.detect(view(blank), occupancy, corners);
+  for (int i = 0; i < 10; ++i) detector.detect(gray_view(blank), occupancy, corners);
   EXPECT_TRUE(corners.empty());
   EXPECT_LT(detector.threshold(), before);
   EXPECT_EQ(detector.threshold(), dsp::DetectorParams{}.threshold_min);
@@ -108,14 +108,16 @@ TEST(TrackerParts, RowMatchingRecoversTheRenderedDisparity) {
   dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
   std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
   dsp::FixedVector<dsp::Corner> corners(500);
-  detector.detect(view(left), occupancy, corners);
+  detector.detect(gray_view(left), occupancy, corners);
   int matched = 0, close = 0;
   for (const dsp::Corner& c : corners) {
-    const auto d = dsp::match_along_row(view(left), view(right), c.u_px, c.v_px, 2, 120, {});
+    const auto d =
+        dsp::match_along_row(gray_view(left), gray_view(right), c.u_px, c.v_px, 2, 120, {});
     if (!d) continue;
     ++matched;
     // Truth: the depth along the pixel's ray.
-    const Eigen::Vector3d ray((c.u_px - cam.cx_px) / cam.f_px, (c.v_px - cam.cy_px) / cam.f_px, 1.0);
+    const Eigen::Vector3d ray((c.u_px - cam.cx_px) / cam.f_px, (c.v_px - cam.cy_px) / cam.f_px,
+                              1.0);
     const auto hit = dsp::ray_hit(room, T.translation(), T.linear() * ray);
     ASSERT_TRUE(hit.has_value());
     const double truth = cam.f_px * cam.baseline_m / hit->range;
@@ -132,19 +134,20 @@ TEST(TrackerParts, LucasKanadeFollowsAKnownShift) {
   // The right image is the left seen 0.11 m to the right: a pure horizontal disparity.
   const Image left = render(room, cam, T0, 0), right = render(room, cam, T0, 1);
   dsp::Pyramid prev(cam.width_px, cam.height_px, 3), cur(cam.width_px, cam.height_px, 3);
-  prev.build(view(left));
-  cur.build(view(right));
+  prev.build(gray_view(left));
+  cur.build(gray_view(right));
   // Lucas-Kanade is meant for corners: track the detector's.
   dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
   std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
   dsp::FixedVector<dsp::Corner> corners(300);
-  detector.detect(view(left), occupancy, corners);
+  detector.detect(gray_view(left), occupancy, corners);
   int ok = 0, good = 0;
   for (const dsp::Corner& c : corners) {
     float u = c.u_px, v = c.v_px;  // no guess: a 15-40 px shift for the pyramid to find
     if (!dsp::klt_track(prev, cur, c.u_px, c.v_px, u, v)) continue;
     ++ok;
-    const Eigen::Vector3d ray((c.u_px - cam.cx_px) / cam.f_px, (c.v_px - cam.cy_px) / cam.f_px, 1.0);
+    const Eigen::Vector3d ray((c.u_px - cam.cx_px) / cam.f_px, (c.v_px - cam.cy_px) / cam.f_px,
+                              1.0);
     const auto hit = dsp::ray_hit(room, T0.translation(), T0.linear() * ray);
     const double d = cam.f_px * cam.baseline_m / hit->range;
     good += std::abs((c.u_px - u) - d) < 0.3 && std::abs(v - c.v_px) < 0.3 ? 1 : 0;
@@ -157,7 +160,8 @@ TEST(TrackerParts, LucasKanadeFollowsAKnownShift) {
 TEST(TrackerParts, PoseFromStereoObservationsWithOutliers) {
   const dsp::StereoIntrinsics K{450.0, 376.0, 240.0, 0.11};
   SE3d T = SE3d::Identity();
-  T.linear() = Eigen::AngleAxisd(0.2, Eigen::Vector3d(0.3, 1.0, 0.1).normalized()).toRotationMatrix();
+  T.linear() =
+      Eigen::AngleAxisd(0.2, Eigen::Vector3d(0.3, 1.0, 0.1).normalized()).toRotationMatrix();
   T.translation() = Eigen::Vector3d(0.3, -0.1, 0.2);
   std::vector<dsp::PoseObservation> obs;
   std::uint64_t s = 12345;
@@ -166,7 +170,8 @@ TEST(TrackerParts, PoseFromStereoObservationsWithOutliers) {
     return static_cast<double>(s >> 11) * (1.0 / 9007199254740992.0);
   };
   for (int i = 0; i < 200; ++i) {
-    const Eigen::Vector3d p_cam((uniform() - 0.5) * 4.0, (uniform() - 0.5) * 3.0, 1.0 + 5.0 * uniform());
+    const Eigen::Vector3d p_cam((uniform() - 0.5) * 4.0, (uniform() - 0.5) * 3.0,
+                                1.0 + 5.0 * uniform());
     dsp::PoseObservation o;
     o.p_world = T.inverse() * p_cam;
     const Eigen::Vector3d uvr = K.project(p_cam);
@@ -191,13 +196,15 @@ TEST(TrackerParts, PoseFromStereoObservationsWithOutliers) {
   // hardly any observation is within the inlier radius of it): the wide pass pulls it in.
   SE3d near = T;
   near.translation() += Eigen::Vector3d(0.02, 0.0, 0.0);
-  near.linear() = Eigen::AngleAxisd(0.026, Eigen::Vector3d::UnitX()).toRotationMatrix() * near.linear();
+  near.linear() =
+      Eigen::AngleAxisd(0.026, Eigen::Vector3d::UnitX()).toRotationMatrix() * near.linear();
   check(dsp::estimate_pose(K, obs, near, inlier, 7), "prior 1.5 deg off");
   // A prior looking the other way (30 cm, 160 deg: every point behind it): only RANSAC can find
   // the pose.
   SE3d prior = T;
   prior.translation() += Eigen::Vector3d(0.3, 0.0, 0.0);
-  prior.linear() = prior.linear() * Eigen::AngleAxisd(2.8, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  prior.linear() =
+      prior.linear() * Eigen::AngleAxisd(2.8, Eigen::Vector3d::UnitY()).toRotationMatrix();
   const dsp::PoseResult r = dsp::estimate_pose(K, obs, prior, inlier, 7);
   EXPECT_TRUE(r.from_ransac);
   check(r, "prior 160 deg off");
@@ -241,9 +248,11 @@ TEST(TrackerMap, PointsHiddenBehindAnOccluderAreCulledAndTheMapperForgetsThem) {
   const Image left = render(room, cam, T, 0), right = render(room, cam, T, 1);
   const auto occluded = [&](const Image& src, int percent) {
     Image out = Image::allocate(cam.width_px, cam.height_px, PixelFormat::kGray8);
-    std::copy_n(src.data(), static_cast<std::size_t>(cam.width_px * cam.height_px), out.mutable_data());
+    std::copy_n(src.data(), static_cast<std::size_t>(cam.width_px * cam.height_px),
+                out.mutable_data());
     for (int y = 0; y < cam.height_px; ++y) {
-      std::fill_n(out.mutable_data() + std::ptrdiff_t{y} * cam.width_px, cam.width_px * percent / 100, 20);
+      std::fill_n(out.mutable_data() + std::ptrdiff_t{y} * cam.width_px,
+                  cam.width_px * percent / 100, 20);
     }
     return out;
   };
@@ -255,8 +264,8 @@ TEST(TrackerMap, PointsHiddenBehindAnOccluderAreCulledAndTheMapperForgetsThem) {
   std::size_t culled_told = 0;
   for (int k = 0; k <= 60; ++k) {
     const int percent = k == 0 ? 0 : k < 60 ? 60 : 85;
-    const dsp::TrackResult r = tracker.track(k * 100'000'000LL, occluded(left, percent),
-                                             occluded(right, percent));
+    const dsp::TrackResult r =
+        tracker.track(k * 100'000'000LL, occluded(left, percent), occluded(right, percent));
     ASSERT_EQ(r.state, dsp::TrackingState::kTracking) << "frame " << k;
     if (const dsp::KeyframeMessage* kf = tracker.pending_keyframe()) {
       culled_told += kf->culled.size();
@@ -279,10 +288,10 @@ TEST(TrackerMap, PointsHiddenBehindAnOccluderAreCulledAndTheMapperForgetsThem) {
   const dsp::MapSnapshot map = mapper.snapshot();
   std::size_t hidden_in_map = 0;
   for (std::size_t i = 0; i < map.points.size(); ++i) {
-    hidden_in_map += tracker.intrinsics().project(map.points.point(i).cast<double>()).x() <
-                             cam.width_px * 0.55
-                         ? 1
-                         : 0;
+    hidden_in_map +=
+        tracker.intrinsics().project(map.points.point(i).cast<double>()).x() < cam.width_px * 0.55
+            ? 1
+            : 0;
   }
   EXPECT_LE(hidden_in_map, hidden_alive);
 }
@@ -320,7 +329,7 @@ SyntheticRun fly_through_room(int frames, double rate_hz) {
 }
 
 /// Set by CMake when the tests run under an emulator (qemu): fewer rendered frames.
-bool short_tests() { return std::getenv("WALLAR_SHORT_TESTS") != nullptr; }
+using test::short_tests;
 
 TEST(TrackerSynthetic, FollowsAKnownPathThroughARenderedRoom) {
   // 10 s, half of the loop (under an emulator 4 s: 0.85 m).
@@ -340,18 +349,19 @@ TEST(TrackerSynthetic, FollowsAKnownPathThroughARenderedRoom) {
   const SE3d T_world0 = run.truth.front().T_world_body;
   std::vector<double> distance;
   for (std::size_t i = 0; i < run.map->points.size(); ++i) {
-    distance.push_back(room.distance_to_nearest_surface(T_world0 * run.map->points.point(i).cast<double>()));
+    distance.push_back(
+        room.distance_to_nearest_surface(T_world0 * run.map->points.point(i).cast<double>()));
   }
   ASSERT_GT(distance.size(), short_tests() ? 300u : 500u);
   std::sort(distance.begin(), distance.end());
   const double median = distance[distance.size() / 2];
   const double p90 = distance[distance.size() * 9 / 10];
-  std::printf("synthetic map: %zu points, distance to the true surfaces: median %.4f m, 90%% %.4f m\n",
-              distance.size(), median, p90);
+  std::printf(
+      "synthetic map: %zu points, distance to the true surfaces: median %.4f m, 90%% %.4f m\n",
+      distance.size(), median, p90);
   EXPECT_LT(median, 0.01);
   EXPECT_LT(p90, 0.03);
 }
-
 
 // --- The real EuRoC still sequence ---------------------------------------------------------------
 

@@ -12,6 +12,8 @@
 #include <cstdlib>
 #include <vector>
 
+#include "test_support.hpp"
+#include "tracking_support.hpp"
 #include "wallar/dsp/eval/trajectory.hpp"
 #include "wallar/dsp/tracking/features.hpp"
 #include "wallar/dsp/tracking/klt.hpp"
@@ -26,7 +28,7 @@ namespace {
 using dsp::SyntheticCamera;
 using dsp::SyntheticRoom;
 
-bool short_tests() { return std::getenv("WALLAR_SHORT_TESTS") != nullptr; }
+using test::short_tests;
 
 SyntheticRoom small_room(std::uint64_t texture_seed = 1) {
   SyntheticRoom room;
@@ -39,9 +41,7 @@ SyntheticRoom small_room(std::uint64_t texture_seed = 1) {
   return room;
 }
 
-dsp::GrayView view(const Image& img) {
-  return {img.data(), img.width(), img.height(), img.stride_bytes()};
-}
+using test::gray_view;
 
 StereoFrame stereo(const SyntheticRoom& room, const SyntheticCamera& cam, const SE3d& T_world_cam,
                    TimeNs t_ns) {
@@ -83,12 +83,12 @@ TEST(TrackerExposure, LucasKanadeFollowsAShiftThroughAGainStep) {
   // The right image with the exposure up 60 % and the black level down (clipped at 0 and 255).
   const Image right = scaled(dsp::render_room_image(room, cam, T0, 1), 1.6, -30.0);
   dsp::Pyramid prev(cam.width_px, cam.height_px, 3), cur(cam.width_px, cam.height_px, 3);
-  prev.build(view(left));
-  cur.build(view(right));
+  prev.build(gray_view(left));
+  cur.build(gray_view(right));
   dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
   std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
   dsp::FixedVector<dsp::Corner> corners(300);
-  detector.detect(view(left), occupancy, corners);
+  detector.detect(gray_view(left), occupancy, corners);
   // The brightness relation from samples at corresponding places (the true disparity here; the
   // tracker uses the predicted ones).
   std::vector<float> a, b;
@@ -124,7 +124,7 @@ TEST(TrackerExposure, LucasKanadeFollowsAShiftThroughAGainStep) {
   const int with = count_good(brightness), without = count_good({});
   // The same pair without the exposure change: what translation-only windows manage here.
   dsp::Pyramid same(cam.width_px, cam.height_px, 3);
-  same.build(view(dsp::render_room_image(room, cam, T0, 1)));
+  same.build(gray_view(dsp::render_room_image(room, cam, T0, 1)));
   std::swap(cur, same);
   const int unchanged = count_good({});
   std::printf(
@@ -144,15 +144,15 @@ TEST(TrackerExposure, PatchSearchIgnoresGainAndRefusesAFlatWindow) {
   dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
   std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
   dsp::FixedVector<dsp::Corner> corners(100);
-  detector.detect(view(img), occupancy, corners);
+  detector.detect(gray_view(img), occupancy, corners);
   int found = 0, tried = 0;
   for (const dsp::Corner& c : corners) {
     dsp::Patch8 patch;
-    if (!dsp::extract_patch(view(img), c.u_px, c.v_px, patch)) continue;
+    if (!dsp::extract_patch(gray_view(img), c.u_px, c.v_px, patch)) continue;
     ++tried;
     float cost = 0.0f;
     const float u0 = std::round(c.u_px), v0 = std::round(c.v_px);
-    const auto hit = dsp::search_patch(view(brighter), patch, u0 + 3.0f, v0 - 2.0f, 8, &cost);
+    const auto hit = dsp::search_patch(gray_view(brighter), patch, u0 + 3.0f, v0 - 2.0f, 8, &cost);
     found +=
         hit && std::abs(hit->first - u0) < 0.6f && std::abs(hit->second - v0) < 0.6f && cost < 8.0f
             ? 1
@@ -162,8 +162,9 @@ TEST(TrackerExposure, PatchSearchIgnoresGainAndRefusesAFlatWindow) {
   // A frame gone dark: nothing there to match, whatever the patch.
   const Image dark = black(cam.width_px, cam.height_px);
   dsp::Patch8 patch;
-  ASSERT_TRUE(dsp::extract_patch(view(img), corners[0].u_px, corners[0].v_px, patch));
-  EXPECT_FALSE(dsp::search_patch(view(dark), patch, corners[0].u_px, corners[0].v_px, 8, nullptr));
+  ASSERT_TRUE(dsp::extract_patch(gray_view(img), corners[0].u_px, corners[0].v_px, patch));
+  EXPECT_FALSE(
+      dsp::search_patch(gray_view(dark), patch, corners[0].u_px, corners[0].v_px, 8, nullptr));
 }
 
 TEST(TrackerExposure, DescriptorsOfOnePlaceAgreeAcrossViewsAndDifferElsewhere) {
@@ -175,12 +176,12 @@ TEST(TrackerExposure, DescriptorsOfOnePlaceAgreeAcrossViewsAndDifferElsewhere) {
   const Image ia = dsp::render_room_image(room, cam, Ta, 0),
               ib = dsp::render_room_image(room, cam, Tb, 0);
   dsp::Pyramid pa(cam.width_px, cam.height_px, 2), pb(cam.width_px, cam.height_px, 2);
-  pa.build(view(ia));
-  pb.build(view(ib));
+  pa.build(gray_view(ia));
+  pb.build(gray_view(ib));
   dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
   std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
   dsp::FixedVector<dsp::Corner> corners(400);
-  detector.detect(view(ia), occupancy, corners);
+  detector.detect(gray_view(ia), occupancy, corners);
   std::vector<int> same, other;
   std::vector<dsp::Descriptor256> in_b;
   for (const dsp::Corner& c : corners) {

@@ -12,6 +12,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "wallar/core/hash.hpp"
+
 namespace wallar::dsp {
 namespace {
 
@@ -105,13 +107,7 @@ Jet quick_turn_yaw(const std::vector<QuickTurn>& turns, const std::vector<double
   return turn_profile(t, turns[i]) + yaw_before[i];
 }
 
-// splitmix64's finaliser (portable, unlike std::hash).
-constexpr std::uint64_t mix64(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
+using core::mix64;
 double unit_open(std::uint64_t h) { return (static_cast<double>(h >> 11) + 0.5) * 0x1.0p-53; }
 
 // Standard normal deviates from a std::mt19937_64 (whose output the standard fixes) by

@@ -11,17 +11,12 @@
 #include <string>
 #include <vector>
 
+#include "wallar/core/hash.hpp"
+
 namespace wallar::dsp {
 namespace {
 
-// splitmix64's finaliser: a well-mixed 64-bit hash, identical on every platform (unlike
-// std::hash or the std:: distributions).
-constexpr std::uint64_t mix64(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
+using core::mix64;
 
 std::uint64_t cell_hash(std::uint64_t key, std::int64_t i, std::int64_t j) {
   return mix64(key ^ mix64(static_cast<std::uint64_t>(i) * 0xD1B54A32D192ED03ULL +

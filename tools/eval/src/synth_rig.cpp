@@ -48,7 +48,7 @@ double cpu_seconds() {
 
 // The shortest text that reads back as v ("0.004", not EuRoC's 17 digits), ".0" on integral
 // values so YAML readers see a float.
-std::string num(double v) {
+std::string yaml_num(double v) {
   char buf[32];
   const auto r = std::to_chars(buf, buf + sizeof buf, v);
   std::string s(buf, r.ptr);
@@ -97,7 +97,7 @@ std::string matrix_rows_yaml(const Eigen::Matrix4d& m, const char* indent) {
   for (int r = 0; r < 4; ++r) {
     s += indent;
     s += "- [";
-    for (int c = 0; c < 4; ++c) s += num(m(r, c)) + (c < 3 ? ", " : "]\n");
+    for (int c = 0; c < 4; ++c) s += yaml_num(m(r, c)) + (c < 3 ? ", " : "]\n");
   }
   return s;
 }
@@ -119,12 +119,12 @@ std::string camchain_yaml(const RigCalibration& rig, double baseline_m, Duration
     s += "  cam_overlaps: [" + std::to_string(1 - i) + "]\n";
     s += "  camera_model: pinhole\n  distortion_coeffs: [0.0, 0.0, 0.0, 0.0]\n";
     s += "  distortion_model: radtan\n";
-    s += "  intrinsics: [" + num(c.fx) + ", " + num(c.fy) + ", " + num(c.cx) + ", " + num(c.cy) +
-         "]\n";
+    s += "  intrinsics: [" + yaml_num(c.fx) + ", " + yaml_num(c.fy) + ", " + yaml_num(c.cx) + ", " +
+         yaml_num(c.cy) + "]\n";
     s +=
         "  resolution: [" + std::to_string(c.width_px) + ", " + std::to_string(c.height_px) + "]\n";
     s += "  rostopic: /cam" + std::to_string(i) + "/image_raw\n";
-    s += "  timeshift_cam_imu: " + num(static_cast<double>(offset_ns) * 1e-9) +
+    s += "  timeshift_cam_imu: " + yaml_num(static_cast<double>(offset_ns) * 1e-9) +
          "  # [s] t_imu = t_cam + shift\n";
   }
   return s;
@@ -297,9 +297,9 @@ nlohmann::json write_synth_rig(const SynthRigOptions& o, const fs::path& out,
       blur_max = std::max(blur_max, f.blur_samples);
       writer.write_camera(0, CameraFrame{t_ns, 0, k, left});
       writer.write_camera(1, CameraFrame{t_ns, 0, k, right});
-      frame_rows.write(std::to_string(t_ns) + "," + num(gains[k]) + "," +
+      frame_rows.write(std::to_string(t_ns) + "," + yaml_num(gains[k]) + "," +
                        std::to_string(std::llround(ic.exposure_s * 1e9 * (o.blur ? 1 : 0))) + "," +
-                       std::to_string(f.blur_samples) + "," + num(f.motion_px) + "\n");
+                       std::to_string(f.blur_samples) + "," + yaml_num(f.motion_px) + "\n");
     }
     if (interrupted) {
       writer.close();
@@ -323,12 +323,12 @@ nlohmann::json write_synth_rig(const SynthRigOptions& o, const fs::path& out,
     yaml += "generator: wallar eval synth-rig\n";
     yaml += "motion: " + std::string(dsp::to_string(o.motion)) + "\n";
     yaml += "seed: " + std::to_string(o.seed) + "\n";
-    yaml += "duration_s: " + num(o.duration_s) + "\n";
-    yaml +=
-        "camera_rate_hz: " + num(o.camera_rate_hz) + "\nimu_rate_hz: " + num(o.imu_rate_hz) + "\n";
+    yaml += "duration_s: " + yaml_num(o.duration_s) + "\n";
+    yaml += "camera_rate_hz: " + yaml_num(o.camera_rate_hz) +
+            "\nimu_rate_hz: " + yaml_num(o.imu_rate_hz) + "\n";
     yaml += "imu_clock_offset_ns: " + std::to_string(offset_ns) +
             "  # IMU stamp = true time + this; timeshift_cam_imu in ../camchain-imucam.yaml\n";
-    yaml += "timeshift_cam_imu: " + num(static_cast<double>(offset_ns) * 1e-9) + "  # [s]\n";
+    yaml += "timeshift_cam_imu: " + yaml_num(static_cast<double>(offset_ns) * 1e-9) + "  # [s]\n";
     yaml += "ground_truth_rate: " + std::string(o.ground_truth_at_camera_rate ? "camera" : "imu") +
             "\n";
     yaml += "exposure_ns: " + std::to_string(std::llround(ic.exposure_s * 1e9)) + "\n";
@@ -336,20 +336,21 @@ nlohmann::json write_synth_rig(const SynthRigOptions& o, const fs::path& out,
     yaml += "rolling_shutter_ns: " + std::to_string(std::llround(ic.rolling_shutter_s * 1e9)) +
             "  # first row to last; a frame's stamp is its middle row's mid-exposure\n";
     yaml += "gain_steps: " + std::string(o.gain_steps ? "on" : "off") + "\n";
-    yaml += "read_noise_dn: " + num(ic.read_noise_dn) +
-            "\nshot_noise_dn: " + num(ic.shot_noise_dn) + "\n";
-    yaml += "peak_turn_deg_s: " + num(o.peak_turn_deg_s) + "\n";
-    yaml += "walk_speed_m_s: " + num(mc.walk_speed_m_s) + "\n";
-    yaml += "still_start_s: " + num(mc.still_start_s) + "\nramp_s: " + num(mc.ramp_s) + "\n";
-    yaml += "gravity_m_s2: " + num(imu_config.gravity_m_s2) + "\n";
-    yaml += "gyro_bias0_rad_s: [" + num(imu_config.gyro_bias0_rad_s.x()) + ", " +
-            num(imu_config.gyro_bias0_rad_s.y()) + ", " + num(imu_config.gyro_bias0_rad_s.z()) +
-            "]\n";
-    yaml += "accel_bias0_m_s2: [" + num(imu_config.accel_bias0_m_s2.x()) + ", " +
-            num(imu_config.accel_bias0_m_s2.y()) + ", " + num(imu_config.accel_bias0_m_s2.z()) +
-            "]\n";
-    yaml += "room_m: [" + num(rb.x_min_m) + ", " + num(rb.x_max_m) + ", " + num(rb.y_min_m) + ", " +
-            num(rb.y_max_m) + ", 0.0, " + num(rb.z_max_m) +
+    yaml += "read_noise_dn: " + yaml_num(ic.read_noise_dn) +
+            "\nshot_noise_dn: " + yaml_num(ic.shot_noise_dn) + "\n";
+    yaml += "peak_turn_deg_s: " + yaml_num(o.peak_turn_deg_s) + "\n";
+    yaml += "walk_speed_m_s: " + yaml_num(mc.walk_speed_m_s) + "\n";
+    yaml +=
+        "still_start_s: " + yaml_num(mc.still_start_s) + "\nramp_s: " + yaml_num(mc.ramp_s) + "\n";
+    yaml += "gravity_m_s2: " + yaml_num(imu_config.gravity_m_s2) + "\n";
+    yaml += "gyro_bias0_rad_s: [" + yaml_num(imu_config.gyro_bias0_rad_s.x()) + ", " +
+            yaml_num(imu_config.gyro_bias0_rad_s.y()) + ", " +
+            yaml_num(imu_config.gyro_bias0_rad_s.z()) + "]\n";
+    yaml += "accel_bias0_m_s2: [" + yaml_num(imu_config.accel_bias0_m_s2.x()) + ", " +
+            yaml_num(imu_config.accel_bias0_m_s2.y()) + ", " +
+            yaml_num(imu_config.accel_bias0_m_s2.z()) + "]\n";
+    yaml += "room_m: [" + yaml_num(rb.x_min_m) + ", " + yaml_num(rb.x_max_m) + ", " +
+            yaml_num(rb.y_min_m) + ", " + yaml_num(rb.y_max_m) + ", 0.0, " + yaml_num(rb.z_max_m) +
             "]  # x_min x_max y_min y_max z_min z_max\n";
     yaml += "texture_seed: " + std::to_string(rb.texture_seed) + "\n";
     write_text(gt_dir / "sensor.yaml", yaml);
