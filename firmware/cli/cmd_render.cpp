@@ -169,7 +169,7 @@ int run_render(const RenderArgs& a) {
     const dsp::RoomResult room = track.outputs.room.value_or(dsp::RoomResult{});
     walls = room.model;
     nlohmann::json walls_json = firmware::to_json(room);
-    walls_json["mode"] = report.room_gravity ? "2-D (gravity from the IMU)" : "3-D (no gravity)";
+    walls_json["mode"] = firmware::to_string(report.room_gravity);
     walls_json["frame"] = track.gravity_aligned
                               ? "world: the first body pose turned so z is up (wallar track "
                                 "--gravity-aligned)"

@@ -89,10 +89,10 @@ nlohmann::json to_json(const firmware::ApplianceReport& r, const firmware::RunOu
        {{"frames", c.frames},
         {"keyframes", c.keyframes},
         {"keyframes_deferred", c.keyframes_deferred},
-      {"new_segments", c.new_segments},
-      {"map_full_keyframes", c.map_full_keyframes},
-      {"culled_keyframes", c.culled_keyframes},
-      {"stale_updates", c.stale_updates},
+        {"new_segments", c.new_segments},
+        {"map_full_keyframes", c.map_full_keyframes},
+        {"culled_keyframes", c.culled_keyframes},
+        {"stale_updates", c.stale_updates},
         {"lost_frames", c.lost_frames},
         {"rejected_frames", c.rejected_frames},
         {"relocalisations", c.relocalisations},
@@ -121,7 +121,7 @@ nlohmann::json to_json(const firmware::ApplianceReport& r, const firmware::RunOu
       {"max_rss_kb", r.max_rss_kb}};
   if (out.room) {
     j["walls"] = firmware::to_json(*out.room);
-    j["walls"]["mode"] = r.room_gravity ? "2-D (gravity from the IMU)" : "3-D (no gravity)";
+    j["walls"]["mode"] = firmware::to_string(r.room_gravity);
     j["walls"]["frame"] = "world: the first body pose";
   }
   return j;
@@ -199,7 +199,7 @@ int run_run_command(const RunArgs& args) {
     for (const std::string& e : report.events) std::printf("  event: %s\n", e.c_str());
     if (out.room) {
       std::printf("wall model (%s, %llu reconstructions, world = first body pose):\n",
-                  report.room_gravity ? "2-D, gravity from the IMU" : "3-D, no gravity",
+                  firmware::to_string(report.room_gravity),
                   static_cast<unsigned long long>(report.reconstructions));
       std::cout << firmware::to_text(*out.room);
     } else {

@@ -73,7 +73,7 @@ int run_track(const TrackArgs& a) {
   if (!a.map.empty()) cloud::write_ply_map(a.map, o.map, o.sigma_m);
   if (!a.walls.empty()) {
     nlohmann::json walls = firmware::to_json(o.room ? *o.room : dsp::RoomResult{});
-    walls["mode"] = report.room_gravity ? "2-D (gravity from the IMU)" : "3-D (no gravity)";
+    walls["mode"] = firmware::to_string(report.room_gravity);
     walls["frame"] = world;
     eval::write_file_atomically(a.walls, walls.dump(2) + "\n");
   }

@@ -73,7 +73,7 @@ TEST(ApplianceHil, RealTimeReplayMissesNoDeadlineAndDropsNoImuSample) {
   EXPECT_GT(r.imu_samples, 390u);
   EXPECT_EQ(r.degraded.camera_lost + r.degraded.imu_lost, 0u) << testing::PrintToString(r.events);
   ASSERT_TRUE(r.room.has_value());
-  EXPECT_TRUE(r.room_gravity);  // the IMU gave gravity: 2-D search
+  EXPECT_EQ(r.room_gravity, RoomGravity::kImu);  // the IMU gave gravity: 2-D search
   EXPECT_EQ(count_kind(*r.room, SurfaceKind::kFloor), 1u);
   const StageRow* e2e = stage_named(r, "camera -> display");
   ASSERT_NE(e2e, nullptr);
@@ -164,7 +164,8 @@ TEST(ApplianceHil, RecoversFromInjectedFaults) {
                 .norm(),
             0.02);
   ASSERT_TRUE(r.room.has_value());
-  EXPECT_TRUE(r.room_gravity);  // the IMU came back: the last model is gravity-aligned
+  EXPECT_EQ(r.room_gravity,
+            RoomGravity::kImu);  // the IMU came back: the last model is gravity-aligned
   EXPECT_EQ(count_kind(*r.room, SurfaceKind::kFloor), 1u);
 }
 
@@ -237,7 +238,7 @@ TEST(ApplianceHil, AVisionOnlyRecordingRunsWithoutDegradedModes) {
                 .norm(),
             0.01);
   ASSERT_TRUE(r.room.has_value());
-  EXPECT_FALSE(r.room_gravity);  // no gravity: the 3-D search
+  EXPECT_EQ(r.room_gravity, RoomGravity::kNone);  // no gravity: the 3-D search
 }
 
 TEST(ApplianceHil, FaultSpecsParseAndBadOnesNameThemselves) {

@@ -4,6 +4,7 @@
 /// culling, point generations, map segments, snapshots.
 #include "wallar/dsp/tracking/mapper.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <unordered_map>
@@ -360,6 +361,7 @@ MapSnapshot Mapper::snapshot() const {
     if (!kf.alive) continue;
     alive_index[k] = static_cast<std::uint32_t>(s.keyframe_centres.size());
     s.keyframe_centres.push_back(kf.T_world_cam.translation());
+    s.keyframe_image_down.push_back(kf.T_world_cam.linear().col(1));
     s.keyframe_t_ns.push_back(kf.t_ns);
   }
   s.viewer_offset.push_back(0);
@@ -376,6 +378,58 @@ MapSnapshot Mapper::snapshot() const {
     s.viewer_offset.push_back(static_cast<std::uint32_t>(s.viewer_index.size()));
   }
   return s;
+}
+
+std::optional<Eigen::Vector3d> down_from_path(const MapSnapshot& map, double min_extent_m,
+                                              double max_flatness) {
+  const std::size_t n = map.keyframe_centres.size();
+  if (n < 3 || map.keyframe_image_down.size() != n) return std::nullopt;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& c : map.keyframe_centres) mean += c;
+  mean /= static_cast<double>(n);
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& c : map.keyframe_centres) cov += (c - mean) * (c - mean).transpose();
+  cov /= static_cast<double>(n);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  const Eigen::Vector3d sd = eig.eigenvalues().cwiseMax(0.0).cwiseSqrt();  // ascending
+  // The spread as the path's extent (4 sigma of a uniform spread is about its length).
+  if (4.0 * sd[1] < min_extent_m || sd[0] > max_flatness * sd[1]) return std::nullopt;
+  Eigen::Vector3d down = eig.eigenvectors().col(0).normalized();
+  Eigen::Vector3d image_down = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& d : map.keyframe_image_down) image_down += d;
+  if (std::abs(image_down.dot(down)) < 0.5 * static_cast<double>(n)) return std::nullopt;
+  if (image_down.dot(down) < 0.0) down = -down;
+  return down;
+}
+
+void local_map(const MapSnapshot& map, double radius_m, LocalMap& out) {
+  out.points.clear();
+  out.viewpoints.clear();
+  out.sigma_scratch.clear();
+  out.median_sigma_m = 0.0;
+  const bool all = map.keyframe_centres.empty();
+  const Eigen::Vector3d c = all ? Eigen::Vector3d::Zero() : map.keyframe_centres.back();
+  const double r2 = radius_m * radius_m;
+  for (const Eigen::Vector3d& k : map.keyframe_centres) {
+    if ((k - c).squaredNorm() <= r2) out.viewpoints.push_back(k);
+  }
+  const bool with_sigma = map.sigma_m.size() == map.points.size();
+  const bool with_weight = map.points.has_weight();
+  const bool with_observations = map.points.has_observations();
+  for (std::size_t i = 0; i < map.points.size(); ++i) {
+    const Eigen::Vector3f p = map.points.point(i);
+    if (!all && (p.cast<double>() - c).squaredNorm() > r2) continue;
+    out.points.push_back(p);
+    if (with_weight) out.points.weight.push_back(map.points.weight[i]);
+    if (with_observations) out.points.observations.push_back(map.points.observations[i]);
+    if (with_sigma) out.sigma_scratch.push_back(map.sigma_m[i]);
+  }
+  std::vector<float>& sigma = out.sigma_scratch;
+  if (!sigma.empty()) {
+    const auto mid = sigma.begin() + static_cast<std::ptrdiff_t>(sigma.size() / 2);
+    std::nth_element(sigma.begin(), mid, sigma.end());
+    out.median_sigma_m = *mid;
+  }
 }
 
 }  // namespace wallar::dsp

@@ -9,13 +9,31 @@
 
 namespace wallar::firmware {
 
+const char* to_string(RoomGravity gravity) {
+  switch (gravity) {
+    case RoomGravity::kImu:
+      return "2-D (gravity from the IMU)";
+    case RoomGravity::kPath:
+      return "2-D (down from the path over the ground)";
+    case RoomGravity::kNone:
+      break;
+  }
+  return "3-D (no gravity)";
+}
+
 Reconstruction::Reconstruction(const ReconstructionOptions& options, std::size_t max_points,
                                TripleBuffer<WallModel>& out)
     : options_(options), estimator_(std::max<std::size_t>(max_points, 1)), out_(out) {}
 
 bool Reconstruction::maybe_run(const dsp::MapSnapshot& map,
-                               const std::optional<Eigen::Vector3d>& down, std::uint32_t epoch,
+                               const std::optional<Eigen::Vector3d>& imu_down, std::uint32_t epoch,
                                bool force) {
+  // Without the IMU's gravity, a path over the ground gives it (a drive, a walk).
+  const std::optional<Eigen::Vector3d> path_down =
+      imu_down ? std::nullopt : dsp::down_from_path(map);
+  const std::optional<Eigen::Vector3d>& down = imu_down ? imu_down : path_down;
+  const RoomGravity gravity =
+      imu_down ? RoomGravity::kImu : (path_down ? RoomGravity::kPath : RoomGravity::kNone);
   if (epoch != epoch_) {  // the map was reset: the old walls are no warm start
     epoch_ = epoch;
     previous_.reset();
@@ -26,20 +44,24 @@ bool Reconstruction::maybe_run(const dsp::MapSnapshot& map,
   const bool grown =
       last_points_ == 0 || static_cast<double>(n) >=
                                static_cast<double>(last_points_) * (1.0 + options_.regrow_fraction);
-  if (!grown && !(force && n != last_points_) && !(force && down.has_value() != last_gravity_)) {
+  if (!grown && !(force && n != last_points_) && !(force && gravity != last_gravity_)) {
     return false;
   }
-  dsp::RoomConfig config = dsp::room_config_for_map(map.keyframe_centres, down,
-                                                    options_.threshold_m, options_.max_surfaces);
+  dsp::local_map(map, options_.local_radius_m, local_);
+  if (local_.points.size() < options_.min_map_points) return false;
+  const double threshold =
+      std::max(options_.threshold_m, options_.threshold_sigmas * local_.median_sigma_m);
+  dsp::RoomConfig config =
+      dsp::room_config_for_map(local_.viewpoints, down, threshold, options_.max_surfaces);
   config.detector.method = options_.method;
   config.detector.seed = options_.seed + runs_;
   const TimeNs t0 = monotonic_now_ns();
   dsp::RoomResult result =
-      estimator_.estimate(map.points, config, previous_ ? &*previous_ : nullptr);
+      estimator_.estimate(local_.points, config, previous_ ? &*previous_ : nullptr);
   time_.record(monotonic_now_ns() - t0);
   previous_ = result.model;
   last_points_ = n;
-  last_gravity_ = down.has_value();
+  last_gravity_ = gravity;
   ++runs_;
   out_.back() = result.model;
   out_.publish();

@@ -47,6 +47,7 @@
 #include "wallar/dsp/tracking/tracker.hpp"
 #include "wallar/dsp/walls/room.hpp"
 #include "wallar/firmware/appliance/allocation_count.hpp"
+#include "wallar/firmware/appliance/reconstruction.hpp"
 #include "wallar/firmware/appliance/records.hpp"
 #include "wallar/firmware/appliance/replay_module.hpp"
 #include "wallar/firmware/appliance/stats.hpp"
@@ -103,8 +104,8 @@ struct ApplianceReport {
   ApplianceMode mode = ApplianceMode::kRealTime;
   source::ReplayStats replay;  //!< summed over loops
   int loops_played = 0;
-  std::optional<dsp::RoomResult> room;  //!< the last wall model (tracker's world)
-  bool room_gravity = false;            //!< found with gravity (2-D mode)
+  std::optional<dsp::RoomResult> room;            //!< the last wall model (tracker's world)
+  RoomGravity room_gravity = RoomGravity::kNone;  //!< the last search's down (2-D) or none
   std::uint64_t reconstructions = 0;
   std::size_t map_points = 0, map_keyframes = 0;
   /// The final map (after a global adjustment), tracker's world.

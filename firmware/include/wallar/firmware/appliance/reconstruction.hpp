@@ -22,6 +22,7 @@
 
 #include "wallar/core/seqlock.hpp"
 #include "wallar/core/triple_buffer.hpp"
+#include "wallar/dsp/tracking/mapper.hpp"
 #include "wallar/dsp/walls/room.hpp"
 #include "wallar/firmware/appliance/snapshots.hpp"
 #include "wallar/firmware/latency_histogram.hpp"
@@ -32,13 +33,28 @@ namespace wallar::firmware {
 
 struct ReconstructionOptions {
   dsp::ScoreMethod method = dsp::ScoreMethod::kBsf;
-  double threshold_m = 0.04;  //!< inlier band of the tracker's map
+  double threshold_m = 0.04;  //!< inlier band of the tracker's map (at least)
+  /// The search looks at the map within this of the newest key-frame (dsp::local_map): all of
+  /// a room, the stretch of street around a moving rig.
+  double local_radius_m = 25.0;
+  /// The inlier band widens to this many times the local points' median uncertainty (a map of
+  /// facades 10-20 m away is not as tight as a room's).
+  double threshold_sigmas = 1.5;
   int max_surfaces = 6;
   double regrow_fraction = 0.10;          //!< re-run when the map grew by this share ...
   std::size_t min_map_points = 60;        //!< ... and has at least this many points
   std::uint64_t seed = 1;                 //!< wall search seeds (seed + run index)
   DurationNs period_ns = 200 * kNsPerMs;  //!< the reconstruct thread's period
 };
+
+/// Where the wall search's "down" came from.
+enum class RoomGravity : std::uint8_t {
+  kNone,  //!< 3-D search
+  kImu,   //!< 2-D search, gravity from the attitude filter
+  kPath,  //!< 2-D search, down from the key-frames' path over the ground (no IMU)
+};
+/// "3-D (no gravity)", "2-D (gravity from the IMU)", "2-D (down from the path)".
+const char* to_string(RoomGravity gravity);
 
 class Reconstruction {
  public:
@@ -47,12 +63,13 @@ class Reconstruction {
 
   /// Runs when the map grew enough since the last run (or `force`: whenever the map or the
   /// gravity mode changed); returns whether it ran. A new `epoch` (a reset) forgets the last
-  /// model.
-  bool maybe_run(const dsp::MapSnapshot& map, const std::optional<Eigen::Vector3d>& down,
+  /// model. `imu_down` is gravity from the IMU in the map's frame; without it, the key-frames'
+  /// path gives it when it runs over the ground (dsp::down_from_path), else the search is 3-D.
+  bool maybe_run(const dsp::MapSnapshot& map, const std::optional<Eigen::Vector3d>& imu_down,
                  std::uint32_t epoch, bool force);
 
   [[nodiscard]] const std::optional<dsp::RoomResult>& result() const { return result_; }
-  [[nodiscard]] bool gravity() const { return last_gravity_; }
+  [[nodiscard]] RoomGravity gravity() const { return last_gravity_; }
   [[nodiscard]] std::uint64_t runs() const { return runs_; }
   [[nodiscard]] const LatencyHistogram& time() const { return time_; }
 
@@ -63,7 +80,8 @@ class Reconstruction {
   std::optional<WallModel> previous_;
   std::optional<dsp::RoomResult> result_;
   std::size_t last_points_ = 0;
-  bool last_gravity_ = false;
+  RoomGravity last_gravity_ = RoomGravity::kNone;
+  dsp::LocalMap local_;  //!< the part of the map searched (capacity kept between runs)
   std::uint32_t epoch_ = 0;
   std::uint64_t runs_ = 0;
   LatencyHistogram time_;

@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "wallar/core/point_cloud.hpp"
@@ -60,6 +61,8 @@ struct MapSnapshot {
   std::vector<float> sigma_m;           //!< per point, position uncertainty (1 sigma)
   std::vector<std::int32_t> point_ids;  //!< the tracker's id of each point
   std::vector<Eigen::Vector3d> keyframe_centres;  //!< camera centres of the key-frames
+  /// Each key-frame's image-down direction (its camera's +y axis) in the world.
+  std::vector<Eigen::Vector3d> keyframe_image_down;
   std::vector<TimeNs> keyframe_t_ns;
   /// Which key-frames saw point i: viewer_index[viewer_offset[i] .. viewer_offset[i + 1]).
   std::vector<std::uint32_t> viewer_offset;
@@ -76,6 +79,28 @@ struct MapperStats {
   int culled = 0;
   double initial_cost = 0.0, final_cost = 0.0;
 };
+
+/// Down from the path alone (no IMU): a rig carried over the ground (walking, driving) keeps
+/// its centres near one horizontal plane. When the key-frame centres spread over more than
+/// `min_extent_m` in two directions and less than `max_flatness` of that in the third, the
+/// plane's normal, on the side the key-frames' image-down axes point to, is down. Otherwise
+/// (a head standing in a room, a path along one line) nothing.
+std::optional<Eigen::Vector3d> down_from_path(const MapSnapshot& map, double min_extent_m = 3.0,
+                                              double max_flatness = 0.1);
+
+/// The part of the map around the newest key-frame that the wall search looks at: points
+/// within radius_m of its centre, the key-frames there as viewpoints, and the points' median
+/// position uncertainty. A room fits in it whole; on a street it is the stretch around the rig
+/// (a 139 m drive's facades are no room: planes from one street would be "seen from behind"
+/// by the key-frames around the corner).
+/// `out` keeps its capacity from call to call.
+struct LocalMap {
+  PointCloud points;
+  std::vector<Eigen::Vector3d> viewpoints;
+  double median_sigma_m = 0.0;
+  std::vector<float> sigma_scratch;  //!< working space (the points' sigmas, reordered)
+};
+void local_map(const MapSnapshot& map, double radius_m, LocalMap& out);
 
 class Mapper {
  public:
