@@ -476,5 +476,70 @@ TEST(MapperBounds, PointsNoLaterKeyframeSeesAreDropped) {
   EXPECT_EQ(mapper.points_count(), 100);
 }
 
+// --- What the wall search sees of a moving rig's map ------------------------------------------
+
+// A map of key-frames along a path: cameras looking along +x, image-down = `down`.
+dsp::MapSnapshot path_map(const std::vector<Eigen::Vector3d>& centres,
+                          const Eigen::Vector3d& down) {
+  dsp::MapSnapshot map;
+  for (const Eigen::Vector3d& c : centres) {
+    map.keyframe_centres.push_back(c);
+    map.keyframe_image_down.push_back(down);
+  }
+  return map;
+}
+
+TEST(WallsOnTheMove, DownComesFromAPathOverTheGroundAndNotFromAHeadStandingStill) {
+  const Eigen::Vector3d down(0.0, 0.0, -1.0);
+  // A drive round a corner, 0.5 m up and down over bumps: flat against its 40 m extent.
+  std::vector<Eigen::Vector3d> drive;
+  for (int k = 0; k < 40; ++k) drive.emplace_back(k, 0.0, 0.02 * (k % 3));
+  for (int k = 1; k < 30; ++k) drive.emplace_back(39.0, k, 0.02 * (k % 2));
+  const auto from_drive = dsp::down_from_path(path_map(drive, down));
+  ASSERT_TRUE(from_drive.has_value());
+  EXPECT_GT(from_drive->dot(down), 0.999);
+  // The cameras upside down: down is the other side of the same plane.
+  const auto flipped = dsp::down_from_path(path_map(drive, -down));
+  ASSERT_TRUE(flipped.has_value());
+  EXPECT_LT(flipped->dot(down), -0.999);
+  // A head standing in a room (centres within 30 cm), a path along one line, and a path climbing
+  // as much as it goes: no down.
+  std::vector<Eigen::Vector3d> standing, line, climb;
+  for (int k = 0; k < 30; ++k) {
+    standing.emplace_back(0.3 * std::cos(k), 0.3 * std::sin(k), 0.05 * std::sin(3 * k));
+    line.emplace_back(k, 0.0, 0.0);
+    climb.emplace_back(k % 6, k / 6, 0.8 * (k % 5));
+  }
+  EXPECT_FALSE(dsp::down_from_path(path_map(standing, down)).has_value());
+  EXPECT_FALSE(dsp::down_from_path(path_map(line, down)).has_value());
+  EXPECT_FALSE(dsp::down_from_path(path_map(climb, down)).has_value());
+}
+
+TEST(WallsOnTheMove, TheLocalMapIsWhatLiesAroundTheNewestKeyframe) {
+  std::vector<Eigen::Vector3d> drive;
+  for (int k = 0; k <= 100; k += 10) drive.emplace_back(k, 0.0, 0.0);  // newest at x = 100
+  dsp::MapSnapshot map = path_map(drive, Eigen::Vector3d(0, 0, -1));
+  for (int i = 0; i <= 100; ++i) {
+    map.points.push_back(Eigen::Vector3f(static_cast<float>(i), 5.0f, 0.0f));
+    map.points.observations.push_back(static_cast<std::uint16_t>(i + 1));
+    map.sigma_m.push_back(i < 90 ? 1.0f : 0.05f * static_cast<float>(i - 89));  // 0.05 .. 0.55
+  }
+  dsp::LocalMap local;
+  dsp::local_map(map, 12.0, local);
+  // Points within 12 m of (100, 0, 0): x >= 90 (sqrt(10^2 + 5^2) < 12 < sqrt(11^2 + 5^2)).
+  ASSERT_EQ(local.points.size(), 11u);
+  EXPECT_FLOAT_EQ(local.points.point(0).x(), 90.0f);
+  EXPECT_EQ(local.points.observations.front(), 91);
+  EXPECT_EQ(local.viewpoints.size(), 2u);  // the key-frames at 90 and 100
+  EXPECT_NEAR(local.median_sigma_m, 0.30, 1e-6);
+  // Called again on a map of one point: nothing of the last call is left.
+  dsp::MapSnapshot one = path_map({Eigen::Vector3d(0, 0, 0)}, Eigen::Vector3d(0, 0, -1));
+  one.points.push_back(Eigen::Vector3f(1.0f, 0.0f, 0.0f));
+  dsp::local_map(one, 12.0, local);
+  EXPECT_EQ(local.points.size(), 1u);
+  EXPECT_EQ(local.viewpoints.size(), 1u);
+  EXPECT_EQ(local.median_sigma_m, 0.0);
+}
+
 }  // namespace
 }  // namespace wallar
