@@ -1,4 +1,5 @@
-# street_topview.png: the street clip from above (see street_topview.py for the CSVs). Redraw
+# street_topview.png: the street clip from above. street_topview.py writes its CSVs (not kept in
+# the repository: they hold the clip's ground truth, which may not be bundled). Redraw
 # from this folder with:  gnuplot street_topview.gp
 if (!exists("outfile")) outfile = "street_topview.png"
 set terminal pngcairo size 900,760 font "DejaVu Sans,11" noenhanced
