@@ -136,10 +136,13 @@ int run_track(const TrackArgs& a) {
     const dsp::TrajectoryErrors& e = *r.errors;
     j["ate_rmse_m"] = e.ate_rmse_m;
     j["ate_max_m"] = e.ate_max_m;
-    j["rpe_trans_rmse_m"] = e.rpe_trans_rmse_m;
-    j["rpe_rot_rmse_deg"] = e.rpe_rot_rmse_deg;
-    j["rpe_delta_s"] = e.rpe_delta_s;
+    if (!r.ground_truth_positions_only) {
+      j["rpe_trans_rmse_m"] = e.rpe_trans_rmse_m;
+      j["rpe_rot_rmse_deg"] = e.rpe_rot_rmse_deg;
+      j["rpe_delta_s"] = e.rpe_delta_s;
+    }
     j["path_length_m"] = e.path_length_m;
+    j["ground_truth"] = r.ground_truth_positions_only ? "positions only" : "poses";
   }
   if (r.drift_m) {
     j["drift_m"] = *r.drift_m;
@@ -171,9 +174,16 @@ int run_track(const TrackArgs& a) {
                 p.p99_ms, p.max_ms);
     if (r.errors) {
       const dsp::TrajectoryErrors& e = *r.errors;
-      std::printf("  ATE %.4f m RMS over a %.3f m path, RPE %.4f m / %.3f deg per %.2f s\n",
-                  e.ate_rmse_m, e.path_length_m, e.rpe_trans_rmse_m, e.rpe_rot_rmse_deg,
-                  e.rpe_delta_s);
+      if (r.ground_truth_positions_only) {
+        std::printf(
+            "  ATE %.4f m RMS over a %.3f m path (the ground truth has positions only: no RPE or "
+            "drift)\n",
+            e.ate_rmse_m, e.path_length_m);
+      } else {
+        std::printf("  ATE %.4f m RMS over a %.3f m path, RPE %.4f m / %.3f deg per %.2f s\n",
+                    e.ate_rmse_m, e.path_length_m, e.rpe_trans_rmse_m, e.rpe_rot_rmse_deg,
+                    e.rpe_delta_s);
+      }
     }
     if (r.drift_m) {
       std::printf("  drift (last pose vs first, against ground truth): %.4f m, %.3f deg\n",

@@ -142,7 +142,19 @@ RunEvaluation evaluate_run(const recording::EurocRecording& rec, const Appliance
         // Too few frames inside the ground truth's span: no ATE, the drift below still holds.
       }
     }
-    if (const auto gt_last = recording::ground_truth_at(rec.ground_truth, poses.back().t_ns)) {
+    // Position tracks (a car's GPS/INS) come with identity orientations: relative poses of the
+    // truth are then in the world's axes, not the body's, and RPE and drift mean nothing.
+    out.ground_truth_positions_only =
+        std::all_of(rec.ground_truth.begin(), rec.ground_truth.end(),
+                    [](const recording::GroundTruthState& g) {
+                      return g.T_world_body.linear() == Eigen::Matrix3d::Identity();
+                    }) &&
+        rec.ground_truth.size() >= 2 &&
+        (rec.ground_truth.front().T_world_body.translation() -
+         rec.ground_truth.back().T_world_body.translation())
+                .norm() > 0.0;
+    if (const auto gt_last = recording::ground_truth_at(rec.ground_truth, poses.back().t_ns);
+        gt_last && !out.ground_truth_positions_only) {
       const SE3d gt_rel = gt0->T_world_body.inverse() * gt_last->T_world_body;
       const SE3d est_rel = poses.front().T_world_body.inverse() * poses.back().T_world_body;
       const SE3d err = gt_rel.inverse() * est_rel;

@@ -625,6 +625,8 @@ track_street)
   run track "$street" --eval --walls "$tmp/street.json" --json; expect_rc 0
   [ -s "$tmp/err" ] && fail "stderr: $(cat "$tmp/err")"
   [ "$(json "d['frames'], d['tracking_frames'], d['lost_frames'], d['mode']")" = "253 253 0 every frame" ] || fail "tracking: $(cat "$tmp/out")"
+  # Its ground truth is a position track (identity orientations): no RPE or drift is claimed.
+  [ "$(json "d['ground_truth'], 'drift_m' in d, 'rpe_rot_rmse_deg' in d")" = "positions only False False" ] || fail "eval fields: $(cat "$tmp/out")"
   # Positions only (the clip's ground-truth orientations are placeholders): under 1 % of the path.
   python3 -c "import json,sys; d=json.load(open('$tmp/out')); sys.exit(0 if d['ate_rmse_m'] < 0.01 * d['path_length_m'] and d['path_length_m'] > 130 else 1)" || fail "ATE: $(json "d['ate_rmse_m'], d['path_length_m']")"
   # The road as the floor and facades as walls, searched in 2-D with down from the path.

@@ -74,6 +74,10 @@ struct RunEvaluation {
   std::optional<dsp::TrajectoryErrors> errors;  //!< with ground_truth and >= 3 frames
   std::optional<double> drift_m, drift_deg;     //!< last pose relative to the first vs truth
   std::optional<FloorAgainstGravity> floor;     //!< when the IMU gives gravity and a floor is found
+  /// The ground truth has positions only (every orientation the identity, as in GPS/INS
+  /// position tracks): ATE is meaningful, RPE and drift (relative poses) are not and are left
+  /// out.
+  bool ground_truth_positions_only = false;
 };
 
 /// Checks before a run what evaluate_run() will need: ground truth with `ground_truth`;
