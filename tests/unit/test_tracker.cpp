@@ -36,17 +36,6 @@ namespace {
 using dsp::SyntheticCamera;
 using dsp::SyntheticRoom;
 
-/// A room small enough that its walls are 2-3 m from the path (EuRoC-like rig).
-SyntheticRoom test_room() {
-  SyntheticRoom room;
-  room.x_min_m = -2.0;
-  room.x_max_m = 2.0;
-  room.y_min_m = -2.5;
-  room.y_max_m = 2.5;
-  room.z_max_m = 2.5;
-  return room;
-}
-
 using dsp::synthetic_rig;
 
 Image render(const SyntheticRoom& room, const SyntheticCamera& c, const SE3d& T_world_cam,
@@ -65,7 +54,7 @@ using test::gray_view;
 // --- Parts -------------------------------------------------------------------------------------
 
 TEST(TrackerParts, CornersAreSpreadOverBucketsAndCapped) {
-  const SyntheticRoom room = test_room();
+  const SyntheticRoom room = test::small_room();
   const SyntheticCamera cam;
   const auto path = dsp::synthetic_trajectory(room, 1, 10.0);
   const Image img = render(room, cam, path[0].T_world_body, 0);
@@ -101,7 +90,7 @@ TEST(TrackerParts, TheThresholdAdaptsToABlankImage) {
 }
 
 TEST(TrackerParts, RowMatchingRecoversTheRenderedDisparity) {
-  const SyntheticRoom room = test_room();
+  const SyntheticRoom room = test::small_room();
   const SyntheticCamera cam;
   const SE3d T = dsp::synthetic_trajectory(room, 1, 10.0)[0].T_world_body;
   const Image left = render(room, cam, T, 0), right = render(room, cam, T, 1);
@@ -128,7 +117,7 @@ TEST(TrackerParts, RowMatchingRecoversTheRenderedDisparity) {
 }
 
 TEST(TrackerParts, LucasKanadeFollowsAKnownShift) {
-  const SyntheticRoom room = test_room();
+  const SyntheticRoom room = test::small_room();
   const SyntheticCamera cam;
   const SE3d T0 = dsp::synthetic_trajectory(room, 1, 10.0)[0].T_world_body;
   // The right image is the left seen 0.11 m to the right: a pure horizontal disparity.
@@ -242,7 +231,7 @@ TEST(TrackerMap, PointsHiddenBehindAnOccluderAreCulledAndTheMapperForgetsThem) {
   // The camera holds still; from frame 1 on, a dark board hides the left 60 % of both images.
   // The map points behind it are predicted in view frame after frame and never found; the
   // last frame hides 85 %, so few tracks remain and a key-frame carries the news to the mapper.
-  const SyntheticRoom room = test_room();
+  const SyntheticRoom room = test::small_room();
   const SyntheticCamera cam;
   const SE3d T = dsp::synthetic_trajectory(room, 1, 10.0)[0].T_world_body;
   const Image left = render(room, cam, T, 0), right = render(room, cam, T, 1);
@@ -305,7 +294,7 @@ struct SyntheticRun {
 };
 
 SyntheticRun fly_through_room(int frames, double rate_hz) {
-  const SyntheticRoom room = test_room();
+  const SyntheticRoom room = test::small_room();
   const SyntheticCamera cam;
   firmware::TrackingOptions options;
   options.mapping_thread = false;  // lock step: repeatable
@@ -345,7 +334,7 @@ TEST(TrackerSynthetic, FollowsAKnownPathThroughARenderedRoom) {
   EXPECT_LT(e.ate_rmse_m, 0.01 * e.path_length_m);
   ASSERT_TRUE(run.map != nullptr);
   // The map's points lie on the room's surfaces.
-  const SyntheticRoom room = test_room();
+  const SyntheticRoom room = test::small_room();
   const SE3d T_world0 = run.truth.front().T_world_body;
   std::vector<double> distance;
   for (std::size_t i = 0; i < run.map->points.size(); ++i) {

@@ -30,16 +30,7 @@ using dsp::SyntheticRoom;
 
 using test::short_tests;
 
-SyntheticRoom small_room(std::uint64_t texture_seed = 1) {
-  SyntheticRoom room;
-  room.x_min_m = -2.0;
-  room.x_max_m = 2.0;
-  room.y_min_m = -2.5;
-  room.y_max_m = 2.5;
-  room.z_max_m = 2.5;
-  room.texture_seed = texture_seed;
-  return room;
-}
+using test::small_room;
 
 using test::gray_view;
 
