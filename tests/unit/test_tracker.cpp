@@ -94,10 +94,7 @@ TEST(TrackerParts, RowMatchingRecoversTheRenderedDisparity) {
   const SyntheticCamera cam;
   const SE3d T = dsp::synthetic_trajectory(room, 1, 10.0)[0].T_world_body;
   const Image left = render(room, cam, T, 0), right = render(room, cam, T, 1);
-  dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
-  std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
-  dsp::FixedVector<dsp::Corner> corners(500);
-  detector.detect(gray_view(left), occupancy, corners);
+  const dsp::FixedVector<dsp::Corner> corners = test::detect_corners(left, 500);
   int matched = 0, close = 0;
   for (const dsp::Corner& c : corners) {
     const auto d =
@@ -126,10 +123,7 @@ TEST(TrackerParts, LucasKanadeFollowsAKnownShift) {
   prev.build(gray_view(left));
   cur.build(gray_view(right));
   // Lucas-Kanade is meant for corners: track the detector's.
-  dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
-  std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
-  dsp::FixedVector<dsp::Corner> corners(300);
-  detector.detect(gray_view(left), occupancy, corners);
+  const dsp::FixedVector<dsp::Corner> corners = test::detect_corners(left, 300);
   int ok = 0, good = 0;
   for (const dsp::Corner& c : corners) {
     float u = c.u_px, v = c.v_px;  // no guess: a 15-40 px shift for the pyramid to find

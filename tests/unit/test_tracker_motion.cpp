@@ -76,10 +76,7 @@ TEST(TrackerExposure, LucasKanadeFollowsAShiftThroughAGainStep) {
   dsp::Pyramid prev(cam.width_px, cam.height_px, 3), cur(cam.width_px, cam.height_px, 3);
   prev.build(gray_view(left));
   cur.build(gray_view(right));
-  dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
-  std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
-  dsp::FixedVector<dsp::Corner> corners(300);
-  detector.detect(gray_view(left), occupancy, corners);
+  const dsp::FixedVector<dsp::Corner> corners = test::detect_corners(left, 300);
   // The brightness relation from samples at corresponding places (the true disparity here; the
   // tracker uses the predicted ones).
   std::vector<float> a, b;
@@ -132,10 +129,7 @@ TEST(TrackerExposure, PatchSearchIgnoresGainAndRefusesAFlatWindow) {
   const SE3d T0 = dsp::synthetic_trajectory(room, 1, 10.0)[0].T_world_body;
   const Image img = dsp::render_room_image(room, cam, T0, 0);
   const Image brighter = scaled(img, 1.5, 10.0);
-  dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
-  std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
-  dsp::FixedVector<dsp::Corner> corners(100);
-  detector.detect(gray_view(img), occupancy, corners);
+  const dsp::FixedVector<dsp::Corner> corners = test::detect_corners(img, 100);
   int found = 0, tried = 0;
   for (const dsp::Corner& c : corners) {
     dsp::Patch8 patch;
@@ -169,10 +163,7 @@ TEST(TrackerExposure, DescriptorsOfOnePlaceAgreeAcrossViewsAndDifferElsewhere) {
   dsp::Pyramid pa(cam.width_px, cam.height_px, 2), pb(cam.width_px, cam.height_px, 2);
   pa.build(gray_view(ia));
   pb.build(gray_view(ib));
-  dsp::CornerDetector detector(cam.width_px, cam.height_px, dsp::DetectorParams{});
-  std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
-  dsp::FixedVector<dsp::Corner> corners(400);
-  detector.detect(gray_view(ia), occupancy, corners);
+  const dsp::FixedVector<dsp::Corner> corners = test::detect_corners(ia, 400);
   std::vector<int> same, other;
   std::vector<dsp::Descriptor256> in_b;
   for (const dsp::Corner& c : corners) {

@@ -5,9 +5,13 @@
 /// Threading: test-thread only.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <vector>
 
 #include "wallar/core/image.hpp"
+#include "wallar/dsp/tracking/features.hpp"
+#include "wallar/dsp/tracking/fixed_vector.hpp"
 #include "wallar/dsp/tracking/gray_image.hpp"
 #include "wallar/dsp/tracking/synthetic_room.hpp"
 
@@ -16,6 +20,16 @@ namespace wallar::test {
 /// The tracker's view of a gray image (no copy: `img` must outlive it).
 inline dsp::GrayView gray_view(const Image& img) {
   return {img.data(), img.width(), img.height(), img.stride_bytes()};
+}
+
+/// The detector's corners (default parameters, no features tracked yet) of a whole image, at
+/// most `max_corners`.
+inline dsp::FixedVector<dsp::Corner> detect_corners(const Image& img, std::size_t max_corners) {
+  dsp::CornerDetector detector(img.width(), img.height(), dsp::DetectorParams{});
+  std::vector<std::uint16_t> occupancy(static_cast<std::size_t>(detector.bucket_count()), 0);
+  dsp::FixedVector<dsp::Corner> corners(max_corners);
+  detector.detect(gray_view(img), occupancy, corners);
+  return corners;
 }
 
 /// A room small enough that its walls are 2-3 m from the path (EuRoC-like rig).
