@@ -12,6 +12,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "wallar/core/hash.hpp"
+
 namespace wallar::dsp {
 namespace {
 
@@ -430,10 +432,7 @@ struct DescriptorPattern {
   DescriptorPattern() {
     std::uint64_t state = 0x5EED0F0B81EFULL;
     const auto next = [&state] {
-      std::uint64_t z = (state += 0x9E3779B97F4A7C15ull);
-      z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-      z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-      return static_cast<double>((z ^ (z >> 31)) >> 11) * (1.0 / 9007199254740992.0);
+      return static_cast<double>(core::splitmix64_next(state) >> 11) * (1.0 / 9007199254740992.0);
     };
     const auto gauss = [&] {
       // Box-Muller from two uniforms in (0, 1].

@@ -10,18 +10,15 @@
 #include <cmath>
 #include <limits>
 
+#include "wallar/core/hash.hpp"
+
 namespace wallar::dsp {
 namespace {
 
 bool has_right(const PoseObservation& o) { return std::isfinite(o.u_right_px); }
 
 /// splitmix64: a tiny deterministic generator (no std distributions: they differ by library).
-std::uint64_t next_random(std::uint64_t& state) {
-  std::uint64_t z = (state += 0x9E3779B97F4A7C15ull);
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return z ^ (z >> 31);
-}
+std::uint64_t next_random(std::uint64_t& state) { return core::splitmix64_next(state); }
 
 int count_inliers(const StereoIntrinsics& K, std::span<const PoseObservation> obs, const SE3d& T,
                   double inlier_sq, double disparity_sigma_px) {

@@ -17,4 +17,12 @@ constexpr std::uint64_t mix64(std::uint64_t x) {
   return x ^ (x >> 31);
 }
 
+/// splitmix64 as a generator: the next value of the sequence `state` is at, and `state` advanced
+/// (mix64 of the state before the step, as in the reference implementation).
+constexpr std::uint64_t splitmix64_next(std::uint64_t& state) {
+  const std::uint64_t z = mix64(state);
+  state += 0x9E3779B97F4A7C15ULL;
+  return z;
+}
+
 }  // namespace wallar::core
