@@ -624,6 +624,9 @@ track_street)
   [ -n "${WALLAR_EMULATOR:-}" ] && { echo "SKIP: 253 frames at 1344x372 under an emulator"; exit 77; }
   run track "$street" --eval --walls "$tmp/street.json" --json; expect_rc 0
   [ -s "$tmp/err" ] && fail "stderr: $(cat "$tmp/err")"
+  # Under a sanitizer (which found a read past the image's last row on this clip) the clean run
+  # is what counts: the threaded mapper falls behind there, so the figures say nothing.
+  [ -n "${WALLAR_SANITIZE:-}" ] && { echo "under $WALLAR_SANITIZE: ran clean, figures not checked"; exit 0; }
   [ "$(json "d['frames'], d['tracking_frames'], d['lost_frames'], d['mode']")" = "253 253 0 every frame" ] || fail "tracking: $(cat "$tmp/out")"
   # Its ground truth is a position track (identity orientations): no RPE or drift is claimed.
   [ "$(json "d['ground_truth'], 'drift_m' in d, 'rpe_rot_rmse_deg' in d")" = "positions only False False" ] || fail "eval fields: $(cat "$tmp/out")"

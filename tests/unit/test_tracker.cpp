@@ -15,6 +15,7 @@
 #include "test_support.hpp"
 #include "tracking_support.hpp"
 #include "wallar/core/error.hpp"
+#include "wallar/core/hash.hpp"
 #include "wallar/core/spsc_ring.hpp"
 #include "wallar/drivers/recording/euroc.hpp"
 #include "wallar/drivers/recording/jpeg.hpp"
@@ -111,6 +112,40 @@ TEST(TrackerParts, RowMatchingRecoversTheRenderedDisparity) {
   }
   EXPECT_GT(matched, static_cast<int>(corners.size()) / 2);
   EXPECT_GT(close, matched * 9 / 10);  // corners sit where depth may jump: most, not all
+}
+
+// A feature on the lowest row the matcher accepts: the sub-pixel refinement's 9x9 window then
+// ends on the image's last row, and a bilinear sample there must not read the row below it
+// (outside the buffer: ASan saw it on the street clip, 1344x372, in CI's sanitizer stage).
+TEST(TrackerParts, RowMatchingOnTheLastRowsStaysInsideTheImage) {
+  constexpr int kW = 160, kH = 40, kShift = 7;
+  // Exactly-sized buffers, so a read past the last row is outside the allocation.
+  std::vector<std::uint8_t> left(static_cast<std::size_t>(kW * kH)), right(left.size());
+  std::uint64_t state = 12345;
+  std::vector<std::uint8_t> texture(static_cast<std::size_t>((kW + kShift) * kH));
+  for (std::uint8_t& t : texture) t = static_cast<std::uint8_t>(core::splitmix64_next(state) >> 56);
+  for (int y = 0; y < kH; ++y) {
+    for (int x = 0; x < kW; ++x) {
+      left[static_cast<std::size_t>(y * kW + x)] =
+          texture[static_cast<std::size_t>(y * (kW + kShift) + x)];
+      right[static_cast<std::size_t>(y * kW + x)] =
+          texture[static_cast<std::size_t>(y * (kW + kShift) + x + kShift)];
+    }
+  }
+  const dsp::GrayView l{left.data(), kW, kH, kW}, r{right.data(), kW, kH, kW};
+  const dsp::StereoMatchParams params;
+  const int lowest = kH - params.half_window - 2;  // match_along_row's own limit
+  int matched = 0;
+  for (int v = lowest - 2; v <= lowest; ++v) {
+    for (float u = 40.0f; u < 120.0f; u += 10.0f) {
+      const auto d = dsp::match_along_row(l, r, u, static_cast<float>(v), 2, 30, params);
+      if (!d) continue;
+      ++matched;
+      // A texel at x in the left image is at x - kShift in the right: disparity kShift.
+      EXPECT_NEAR(*d, static_cast<float>(kShift), 0.3f) << "v " << v << " u " << u;
+    }
+  }
+  EXPECT_GT(matched, 10);
 }
 
 TEST(TrackerParts, LucasKanadeFollowsAKnownShift) {

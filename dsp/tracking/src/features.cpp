@@ -126,7 +126,8 @@ float refine_disparity(const GrayView& left, const GrayView& right, float u_px, 
                        float d0) {
   constexpr int kHw = 4;  // 9x9 window for the refinement
   (void)hw;
-  if (y - kHw < 0 || y + kHw >= left.height) return d0;
+  // Bilinear samples read the row below theirs: the window's last row must not be the image's.
+  if (y - kHw < 0 || y + kHw + 1 >= left.height || y + kHw + 1 >= right.height) return d0;
   std::array<float, (2 * kHw + 1) * (2 * kHw + 1)> tmpl{};
   float mean_l = 0.0f;
   std::size_t k = 0;
