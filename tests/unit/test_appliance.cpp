@@ -10,10 +10,13 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <string>
+#include <vector>
 
 #include "test_support.hpp"
 #include "wallar/firmware/appliance.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/hil/faults.hpp"
 #include "wallar/firmware/hil/replay_plan.hpp"
 #include "wallar/firmware/offline.hpp"
 
@@ -94,6 +97,48 @@ TEST(ApplianceHil, RealTimeReplayMissesNoDeadlineAndDropsNoImuSample) {
     EXPECT_EQ(tracking->misses, 0u);
     EXPECT_EQ(supervisor->misses, 0u);
   }
+}
+
+// A tracker slower than the camera is busy, not hung: with frames always waiting (the replay at
+// 20x, 400 pairs a second) the tracking thread never goes back to its wait, and its heartbeat
+// must still move, or the supervisor withholds the watchdog and systemd kills a working process
+// (seen in the boot test under emulation, where tracking runs below the camera's rate).
+TEST(ApplianceHil, ATrackerSlowerThanTheCameraKeepsItsHeartbeat) {
+  const BoardConfig board = sim_board();
+  ApplianceOptions o = quiet_options();
+  std::vector<std::string> lines;
+  o.log = [&lines](const std::string& line) { lines.push_back(line); };
+  o.view = false;
+  o.replay.rate = 20.0;
+  o.replay_plan = hil::replay_plan(0, {});  // until stopped
+  o.max_duration_ns = 3500 * kNsPerMs;      // over the 2 s that reads as a hang
+  const std::atomic<bool> stop{false};
+  const ApplianceReport r = run_appliance(board, o, stop);
+  EXPECT_GT(r.frames_overwritten, 0u) << "the tracker kept up: no backlog, nothing shown";
+  for (const std::string& line : lines) EXPECT_EQ(line.find("stalled"), std::string::npos) << line;
+}
+
+// A tracking thread that hangs (the tracking-hang fault: 2.5 s asleep before a frame) is seen by
+// the supervisor, which withholds the watchdog while it lasts and says when it is back.
+TEST(ApplianceHil, AHungTrackingThreadIsSeenAndItsRecoveryToo) {
+  const BoardConfig board = sim_board();
+  ApplianceOptions o = quiet_options();
+  std::vector<std::string> lines;
+  o.log = [&lines](const std::string& line) { lines.push_back(line); };
+  o.view = false;
+  o.replay.rate = 1.0;
+  o.replay_plan = hil::replay_plan(3, {});  // 6 s: the hang, and tracking after it
+  o.before_frame = hil::tracking_hangs({hil::parse_fault("tracking-hang@0.5+2.5")});
+  const std::atomic<bool> stop{false};
+  const ApplianceReport r = run_appliance(board, o, stop);
+  int stalled = 0, alive = 0;
+  for (const std::string& line : lines) {
+    stalled += line.find("tracking thread stalled") != std::string::npos ? 1 : 0;
+    alive += line.find("tracking thread alive again") != std::string::npos ? 1 : 0;
+  }
+  EXPECT_EQ(stalled, 1) << testing::PrintToString(lines);
+  EXPECT_EQ(alive, 1) << testing::PrintToString(lines);
+  EXPECT_GT(r.frames_tracked, 20u);  // it went on tracking after the hang
 }
 
 // (b) As fast as possible, deterministic: two runs give the same poses and walls, bit for bit.
@@ -249,8 +294,9 @@ TEST(ApplianceHil, FaultSpecsParseAndBadOnesNameThemselves) {
   EXPECT_DOUBLE_EQ(f.duration_s, 0.25);
   EXPECT_EQ(to_string(f), "camera-stall@1.5+0.25");
   EXPECT_EQ(to_string(parse_fault("corrupt-frame@2")), "corrupt-frame@2");
+  EXPECT_EQ(to_string(parse_fault("tracking-hang@0.5+3")), "tracking-hang@0.5+3");
   for (const char* bad : {"camera-stall", "camera-stall@x+1", "imu-unplug@1", "corrupt-frame@1+2",
-                          "melt@1+1", "camera-stall@1+0", "imu-unplug@-1+1"}) {
+                          "melt@1+1", "camera-stall@1+0", "imu-unplug@-1+1", "tracking-hang@1"}) {
     try {
       parse_fault(bad);
       ADD_FAILURE() << bad << " was accepted";

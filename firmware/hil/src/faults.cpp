@@ -5,8 +5,10 @@
 
 #include <algorithm>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <thread>
 
 #include "wallar/core/error.hpp"
 
@@ -15,7 +17,8 @@ namespace wallar::firmware::hil {
 FaultSpec parse_fault(const std::string& text) {
   auto fail = [&](const char* why) -> FaultSpec {
     throw InputError("--fault '" + text + "': " + why +
-                     " (expected camera-stall@T+D, imu-unplug@T+D or corrupt-frame@T, seconds)");
+                     " (expected camera-stall@T+D, imu-unplug@T+D, corrupt-frame@T or "
+                     "tracking-hang@T+D, seconds)");
   };
   const std::size_t at = text.find('@');
   if (at == std::string::npos) return fail("no '@'");
@@ -27,6 +30,8 @@ FaultSpec parse_fault(const std::string& text) {
     f.kind = FaultSpec::Kind::kImuUnplug;
   } else if (kind == "corrupt-frame") {
     f.kind = FaultSpec::Kind::kCorruptFrame;
+  } else if (kind == "tracking-hang") {
+    f.kind = FaultSpec::Kind::kTrackingHang;
   } else {
     return fail("unknown fault");
   }
@@ -60,8 +65,34 @@ std::string to_string(const FaultSpec& fault) {
     case FaultSpec::Kind::kCorruptFrame:
       std::snprintf(buf, sizeof buf, "corrupt-frame@%g", fault.at_s);
       break;
+    case FaultSpec::Kind::kTrackingHang:
+      std::snprintf(buf, sizeof buf, "tracking-hang@%g+%g", fault.at_s, fault.duration_s);
+      break;
   }
   return buf;
+}
+
+std::function<void(TimeNs t_ns)> tracking_hangs(const std::vector<FaultSpec>& faults) {
+  struct Hang {
+    DurationNs at_ns;
+    DurationNs duration_ns;
+    bool done;
+  };
+  std::vector<Hang> hangs;
+  for (const FaultSpec& f : faults) {
+    if (f.kind == FaultSpec::Kind::kTrackingHang)
+      hangs.push_back({s_to_ns(f.at_s), s_to_ns(f.duration_s), false});
+  }
+  if (hangs.empty()) return {};
+  // Called on the tracking thread only: the state needs no lock.
+  return [hangs = std::move(hangs), t0_ns = TimeNs{-1}](TimeNs t_ns) mutable {
+    if (t0_ns < 0) t0_ns = t_ns;
+    for (Hang& h : hangs) {
+      if (h.done || t_ns - t0_ns < h.at_ns) continue;
+      h.done = true;
+      std::this_thread::sleep_for(std::chrono::nanoseconds(h.duration_ns));
+    }
+  };
 }
 
 FaultSink::FaultSink(source::SensorSink& next, std::vector<FaultSpec> faults)

@@ -135,6 +135,7 @@ ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& op
   tracking.imu_timeout_ns = options.imu_timeout_ns;
   tracking.max_records = options.max_records;
   tracking.log = options.log;
+  tracking.before_frame = options.before_frame;
   ReconstructionOptions reconstruction_options;
   reconstruction_options.method = options.wall_method;
   reconstruction_options.threshold_m = options.wall_threshold_m;

@@ -59,6 +59,9 @@ void TrackingThread::run(const std::atomic<bool>& stop, std::atomic<std::uint64_
       on_frame(frame);
       frame = StereoFrame{};  // give the buffers back now
       pipeline_.frame_done();
+      // A frame done is progress too: a tracker slower than the camera never leaves this loop
+      // (a new frame is always waiting), and must not read as hung (seen under emulation).
+      heartbeat_ns_.store(monotonic_now_ns(), std::memory_order_relaxed);
     }
     drain_imu(std::numeric_limits<TimeNs>::max());
   }
@@ -154,6 +157,7 @@ std::optional<Eigen::Vector3d> TrackingThread::gravity_in_world(const SE3d& T_wo
 
 void TrackingThread::on_frame(const StereoFrame& f) {
   if (t0_ns_ < 0) t0_ns_ = f.t_ns;
+  if (options_.before_frame) options_.before_frame(f.t_ns);
   const TimeNs taken_ns = monotonic_now_ns();
   if (f.left.publish_t_ns > 0) queue_.record(taken_ns - f.left.publish_t_ns);
   if (camera_lost_) {

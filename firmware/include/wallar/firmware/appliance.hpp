@@ -70,6 +70,9 @@ struct ApplianceOptions {
   /// Test tooling (firmware/hil: loops, injected faults), made for the recording at start;
   /// empty: the recording is played once, as it is.
   std::function<std::unique_ptr<ReplayPlan>(const recording::EurocRecording&)> replay_plan;
+  /// Test tooling (firmware/hil's tracking-hang fault): called on the tracking thread before
+  /// each frame, with the frame's time; empty in the product.
+  std::function<void(TimeNs t_ns)> before_frame;
   DurationNs max_duration_ns = 0;  //!< > 0: stop after this much wall time
   bool view = true;                //!< draw the headset view (render thread)
   std::filesystem::path png_dir;   //!< write every `png_every`th drawn view here (empty: none)

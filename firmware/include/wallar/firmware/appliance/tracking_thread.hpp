@@ -50,6 +50,8 @@ struct TrackingThreadOptions {
   std::size_t max_records = 1 << 16;  //!< per-frame records kept (the rest counted only)
   /// One line per event (transitions); may be empty.
   std::function<void(const std::string&)> log;
+  /// Test tooling (ApplianceOptions::before_frame): called before each frame; may be empty.
+  std::function<void(TimeNs t_ns)> before_frame;
 };
 
 class TrackingThread {
@@ -70,6 +72,8 @@ class TrackingThread {
 
   [[nodiscard]] TrackingAndMapping& system() { return system_; }
   [[nodiscard]] const TrackingAndMapping& system() const { return system_; }
+  /// When the thread last showed progress (a wake-up or a frame done), any thread: the
+  /// supervisor withholds the watchdog when it is over 2 s old.
   [[nodiscard]] TimeNs heartbeat_ns() const {
     return heartbeat_ns_.load(std::memory_order_relaxed);
   }

@@ -5,11 +5,12 @@
 /// Test tooling, not part of the product's modules.
 ///
 /// Threading: parse_fault()/to_string() are pure; a FaultSink is called from the replay thread,
-/// injected() from any thread.
+/// injected() from any thread; tracking_hangs()'s function from the tracking thread only.
 #pragma once
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -17,13 +18,16 @@
 
 namespace wallar::firmware::hil {
 
-/// A fault injected into the sensor streams at a time of the (first) replay, in seconds from
-/// its first sample: "camera-stall@1.0+0.5", "imu-unplug@0.4+0.6", "corrupt-frame@1.2".
+/// A fault injected at a time of the (first) replay, in seconds from its first sample: into the
+/// sensor streams ("camera-stall@1.0+0.5", "imu-unplug@0.4+0.6", "corrupt-frame@1.2") or into
+/// the tracking thread, which then hangs before a frame ("tracking-hang@1.0+5": the supervisor
+/// sees no heartbeat and withholds the watchdog).
 struct FaultSpec {
   enum class Kind : std::uint8_t {
     kCameraStall,
     kImuUnplug,
-    kCorruptFrame
+    kCorruptFrame,
+    kTrackingHang
   } kind = Kind::kCameraStall;
   double at_s = 0.0;
   double duration_s = 0.0;  //!< stalls and unplugs; corrupt-frame hits one frame
@@ -31,6 +35,11 @@ struct FaultSpec {
 /// Parses a fault; throws InputError naming `text` when it is malformed.
 FaultSpec parse_fault(const std::string& text);
 std::string to_string(const FaultSpec& fault);
+
+/// The tracking-hang faults of `faults` as ApplianceOptions::before_frame: the first frame at or
+/// after each fault's time (from the first frame) sleeps for its duration, once. Empty when
+/// there is none.
+std::function<void(TimeNs t_ns)> tracking_hangs(const std::vector<FaultSpec>& faults);
 
 /// Withholds (camera stall, IMU unplug) or garbles (corrupt frame: noise of the right size)
 /// the samples the faults cover, and forwards the rest to `next`.
