@@ -5,6 +5,7 @@
 /// input or --duration; SIGUSR1 prints the stats table meanwhile. Prints the wall model and a
 /// summary (--stats: the table of threads and stages) and writes them under --out, in the
 /// first body pose's world (as `wallar track` writes its files).
+#include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -33,7 +34,7 @@ struct RunArgs {
   int view_every = 20;
   bool deterministic = false;
   bool no_rt = false;
-  int loops = 1;
+  int loops = -1;  // -1: the board's replay.loop
   double duration_s = 0.0;
   std::vector<std::string> faults;
   std::string method = "bsf";
@@ -148,8 +149,10 @@ int run_run_command(const RunArgs& args) {
   // Test tooling between the replay and the pipeline (firmware/hil), only when asked for.
   std::vector<firmware::hil::FaultSpec> faults;
   for (const std::string& f : args.faults) faults.push_back(firmware::hil::parse_fault(f));
-  if (args.loops != 1 || !faults.empty()) {
-    options.replay_plan = firmware::hil::replay_plan(args.loops, std::move(faults));
+  options.before_frame = firmware::hil::tracking_hangs(faults);
+  const int loops = args.loops >= 0 ? args.loops : static_cast<int>(board.replay.loops);
+  if (loops != 1 || !faults.empty()) {
+    options.replay_plan = firmware::hil::replay_plan(loops, std::move(faults));
   }
   options.wall_method = score_method_named(args.method);
   options.seed = args.seed;
@@ -210,6 +213,9 @@ int run_run_command(const RunArgs& args) {
     }
     std::printf("outputs in %s/\n", args.out.c_str());
   }
+  // SIGTERM is the service manager's stop (systemctl stop, shutdown): the appliance did what
+  // it was asked, exit 0. SIGINT (a terminal's Ctrl-C) and the exit input give 130.
+  if (report.interrupted && stop_signal().load() == SIGTERM) return kExitOk;
   return report.interrupted ? kExitInterrupted : kExitOk;
 }
 
@@ -234,14 +240,16 @@ void add_run_command(CLI::App& app, std::function<int()>& run) {
                 "Replay in lock step (no frame dropped, mapping and walls at fixed points): "
                 "the same poses and walls on every run");
   cmd->add_flag("--no-rt", args->no_rt, "Do not ask for SCHED_FIFO, affinity or mlockall");
-  cmd->add_option("--loop", args->loops, "Replay the recording N times (0: until stopped)")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
+  cmd->add_option("--loop", args->loops,
+                  "Replay the recording N times (0: until stopped; default: the board's "
+                  "replay.loop, 1)")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--duration", args->duration_s, "Stop after this many seconds")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--fault", args->faults,
-                  "Inject a fault into the replayed streams: camera-stall@T+D, imu-unplug@T+D, "
-                  "corrupt-frame@T (seconds from the start; repeatable)");
+                  "Inject a fault into the replayed streams (camera-stall@T+D, imu-unplug@T+D, "
+                  "corrupt-frame@T) or the tracking thread (tracking-hang@T+D); seconds from "
+                  "the start; repeatable");
   cmd->add_option("--method", args->method,
                   "Wall search score: ransac, msac, bsf (BSF-RANSAC) or binomial (B-RANSAC)")
       ->check(CLI::IsMember(kScoreMethodNames))

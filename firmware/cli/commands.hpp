@@ -22,6 +22,8 @@ enum ExitCode : int {
 
 /// Set by SIGINT/SIGTERM; long-running commands poll it and stop cleanly.
 std::atomic<bool>& stop_requested();
+/// The signal that set stop_requested() (SIGINT or SIGTERM), 0 before one arrived.
+std::atomic<int>& stop_signal();
 /// Set by SIGUSR1: print the statistics now (wallar run).
 std::atomic<bool>& stats_requested();
 

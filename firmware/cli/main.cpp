@@ -17,6 +17,12 @@ std::atomic<bool>& stop_requested() {
   return flag;
 }
 
+std::atomic<int>& stop_signal() {
+  static std::atomic<int> signo{0};
+  static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs a lock-free int");
+  return signo;
+}
+
 std::atomic<bool>& stats_requested() {
   static std::atomic<bool> flag{false};
   return flag;
@@ -26,7 +32,10 @@ std::atomic<bool>& stats_requested() {
 
 namespace {
 
-void on_stop_signal(int /*signo*/) { wallar::cli::stop_requested().store(true); }
+void on_stop_signal(int signo) {
+  wallar::cli::stop_signal().store(signo);
+  wallar::cli::stop_requested().store(true);
+}
 void on_stats_signal(int /*signo*/) { wallar::cli::stats_requested().store(true); }
 
 void install_signal_handlers() {

@@ -173,6 +173,20 @@ run_signals)
   expect_rc 130
   expect_err "thread       policy"; expect_err "tracking"
   expect_out "wall model"
+  # SIGTERM is the service manager's stop: exit 0, and the board's replay.loop (0 here: until
+  # stopped) kept it playing until then.
+  sed 's/^  skip: 0$/  skip: 0\n  loop: 0/; s|recording: \.\./|recording: '"$src"'/|' \
+    "$src/board/sim.yaml" >"$tmp/loop.yaml"
+  grep -q '^  loop: 0$' "$tmp/loop.yaml" || fail "could not write the looping board"
+  ${WALLAR_EMULATOR:-} "$bin" run --board "$tmp/loop.yaml" --out "$tmp/o2" --no-view \
+    >"$tmp/out" 2>"$tmp/err" &
+  pid=$!
+  for _ in $(seq 1 100); do grep -q "board sim" "$tmp/err" && break; sleep 0.1; done
+  sleep 3  # past the 2 s recording's end: a single play would have ended by now
+  kill -0 $pid 2>/dev/null || fail "the looping board stopped by itself"
+  kill -TERM $pid; wait $pid; echo $? >"$tmp/rc"
+  expect_rc 0
+  expect_out "wall model"
   ;;
 walls)
   pcd="$src/tests/data/pcl/sac_plane_test.pcd"

@@ -6,8 +6,8 @@
 #include "test_support.hpp"
 #include "wallar/drivers/config/yaml.hpp"
 #include "wallar/firmware/board.hpp"
-#include "wallar/firmware/tracking_and_mapping.hpp"
 #include "wallar/firmware/live_stereo.hpp"
+#include "wallar/firmware/tracking_and_mapping.hpp"
 
 namespace wallar::test {
 namespace {
@@ -62,6 +62,11 @@ TEST(Board, TheShippedBoardFilesLoad) {
   EXPECT_EQ(sim.tracking.max_tracks, 300);
   EXPECT_EQ(sim.tracking.max_map_points, 20000);
   EXPECT_TRUE(sim.tracking.mapping_thread);
+
+  // The boot image's board: the recording on the image's data partition, played until stopped.
+  const auto qemu = firmware::load_board(fs::path(WALLAR_SOURCE_DIR) / "board" / "qemu-virt.yaml");
+  EXPECT_EQ(qemu.replay.recording, fs::path("/var/lib/wallar/recordings/euroc_v1_01_still"));
+  EXPECT_EQ(qemu.replay.loops, 0U);
 
   const auto pi = firmware::load_board(fs::path(WALLAR_SOURCE_DIR) / "board" / "rpi5.yaml");
   EXPECT_EQ(pi.source, firmware::BoardConfig::Source::kLive);
@@ -154,8 +159,9 @@ TEST(Board, WrongTypesAndRangesAreNamed) {
 }
 
 TEST(Board, TrackingCapacitiesAreReadAndChecked) {
-  std::string text = std::string(kLiveBoard) +
-                     "tracking:\n  max_tracks: 150\n  max_map_points: 5000\n  mapping_thread: false\n";
+  std::string text =
+      std::string(kLiveBoard) +
+      "tracking:\n  max_tracks: 150\n  max_map_points: 5000\n  mapping_thread: false\n";
   const auto b = parse_board(text, "b.yaml", ".");
   EXPECT_EQ(b.tracking.max_tracks, 150);
   EXPECT_EQ(b.tracking.max_map_points, 5000);
@@ -180,6 +186,17 @@ TEST(Board, RelativeRecordingPathsResolveAgainstTheBoardFile) {
   EXPECT_EQ(b.replay.recording, fs::path("/opt/wallar/rec"));
   EXPECT_THAT(board_error("board: {name: s}\nsource: replay\nreplay: {recording: r, rate: -1}\n"),
               HasSubstr("b.yaml:3: 'replay.rate' must be >= 0"));
+}
+
+TEST(Board, ReplayLoopsAreReadAndChecked) {
+  const auto once =
+      parse_board("board: {name: s}\nsource: replay\nreplay: {recording: r}\n", "b.yaml", "/b");
+  EXPECT_EQ(once.replay.loops, 1U);  // the default: play it once
+  const auto forever = parse_board(
+      "board: {name: s}\nsource: replay\nreplay: {recording: r, loop: 0}\n", "b.yaml", "/b");
+  EXPECT_EQ(forever.replay.loops, 0U);  // until stopped
+  EXPECT_THAT(board_error("board: {name: s}\nsource: replay\nreplay: {recording: r, loop: -2}\n"),
+              HasSubstr("b.yaml:3: 'replay.loop' must be in 0..1000000 (0 = until stopped)"));
 }
 
 }  // namespace

@@ -75,9 +75,8 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
   const config::YamlDocument doc = config::YamlDocument::parse(text, name);
   const YamlNode& root = doc.root();
   if (!root.is_map()) root.fail("must be a map (a board file)");
-  root.check_keys(
-      {"board", "source", "replay", "cameras", "imu", "display", "tracking", "calibration",
-       "input"});
+  root.check_keys({"board", "source", "replay", "cameras", "imu", "display", "tracking",
+                   "calibration", "input"});
   BoardConfig b;
   b.file = name;
 
@@ -91,7 +90,7 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
                  : BoardConfig::Source::kLive;
   if (b.source == BoardConfig::Source::kReplay) {
     const YamlNode& r = root.at("replay");
-    r.check_keys({"recording", "rate", "start_offset_s", "skip"});
+    r.check_keys({"recording", "rate", "start_offset_s", "skip", "loop"});
     b.replay.recording = resolve(base_dir, r.at("recording"));
     b.replay.rate = r.get_double("rate", 1.0);
     if (b.replay.rate < 0.0) r.at("rate").fail("must be >= 0 (0 = as fast as possible)");
@@ -100,6 +99,10 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
     const std::int64_t skip = r.get_int("skip", 0);
     if (skip < 0 || skip > 1000) r.at("skip").fail("must be in 0..1000");
     b.replay.skip = static_cast<std::uint32_t>(skip);
+    const std::int64_t loops = r.get_int("loop", 1);
+    if (loops < 0 || loops > 1000000)
+      r.at("loop").fail("must be in 0..1000000 (0 = until stopped)");
+    b.replay.loops = static_cast<std::uint32_t>(loops);
   } else {
     const YamlNode& cams = root.at("cameras");
     cams.check_keys({"left", "right", "sync_tolerance_ms", "trigger"});
@@ -154,8 +157,10 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
                    "pyramid_levels", "mapping_thread"});
     TrackingConfig& tc = b.tracking;
     if (const YamlNode* n = t->find("max_tracks")) tc.max_tracks = positive_int(*n, 5000);
-    if (const YamlNode* n = t->find("keyframe_points")) tc.keyframe_points = positive_int(*n, 20000);
-    if (const YamlNode* n = t->find("max_map_points")) tc.max_map_points = positive_int(*n, 10'000'000);
+    if (const YamlNode* n = t->find("keyframe_points"))
+      tc.keyframe_points = positive_int(*n, 20000);
+    if (const YamlNode* n = t->find("max_map_points"))
+      tc.max_map_points = positive_int(*n, 10'000'000);
     if (const YamlNode* n = t->find("max_keyframes")) tc.max_keyframes = positive_int(*n, 100'000);
     if (const YamlNode* n = t->find("pyramid_levels")) tc.pyramid_levels = positive_int(*n, 6);
     if (const YamlNode* n = t->find("mapping_thread")) tc.mapping_thread = n->as_bool();

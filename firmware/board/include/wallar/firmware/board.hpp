@@ -57,10 +57,10 @@ struct DisplayConfig {
 
 /// The tracker's fixed-capacity storage, allocated once at start-up from these.
 struct TrackingConfig {
-  int max_tracks = 300;        //!< features tracked per frame
-  int keyframe_points = 800;   //!< new map points per key-frame
+  int max_tracks = 300;       //!< features tracked per frame
+  int keyframe_points = 800;  //!< new map points per key-frame
   int max_map_points = 20000;
-  int max_keyframes = 128;     //!< key-frame records kept for relocalisation
+  int max_keyframes = 128;  //!< key-frame records kept for relocalisation
   int pyramid_levels = 3;
   bool mapping_thread = true;  //!< false: map in lock step on the tracking thread
 };
@@ -70,6 +70,7 @@ struct ReplayConfig {
   double rate = 1.0;                //!< 0 = as fast as possible
   double start_offset_s = 0.0;
   std::uint32_t skip = 0;
+  std::uint32_t loops = 1;  //!< times the recording is played; 0 = until stopped (a soak, a demo)
 };
 
 struct BoardConfig {
