@@ -35,6 +35,18 @@ set(WALLAR_SIMD_FLAGS "${WALLAR_SIMD_FLAGS}" CACHE STRING "SIMD baseline flags f
 separate_arguments(_wallar_simd UNIX_COMMAND "${WALLAR_SIMD_FLAGS}")
 target_compile_options(wallar_build_flags INTERFACE ${_wallar_simd})
 
+# Hardening, as Debian's dpkg-buildflags gives its packages (lintian checks the binary for it):
+# checked libc calls, stack protector, stack-clash probes, and a read-only GOT resolved at
+# start-up (no lazy binding: the fixed-rate threads never stop in the dynamic linker either).
+# Not in Debug (_FORTIFY_SOURCE needs the optimiser) nor under the sanitizers (their own checks).
+if(NOT WALLAR_SANITIZE AND NOT WALLAR_BUILD_FUZZ)
+  target_compile_options(wallar_build_flags INTERFACE -fstack-protector-strong
+                                                      -fstack-clash-protection)
+  target_compile_definitions(wallar_build_flags INTERFACE
+                             $<$<NOT:$<CONFIG:Debug>>:_FORTIFY_SOURCE=2>)
+  target_link_options(wallar_build_flags INTERFACE -Wl,-z,relro -Wl,-z,now)
+endif()
+
 if(WALLAR_SANITIZE)
   string(REPLACE ";" "," _wallar_san "${WALLAR_SANITIZE}")
   add_compile_options(-fsanitize=${_wallar_san} -fno-omit-frame-pointer
