@@ -138,7 +138,10 @@ TEST(ApplianceHil, AHungTrackingThreadIsSeenAndItsRecoveryToo) {
   }
   EXPECT_EQ(stalled, 1) << testing::PrintToString(lines);
   EXPECT_EQ(alive, 1) << testing::PrintToString(lines);
-  EXPECT_GT(r.frames_tracked, 20u);  // it went on tracking after the hang
+  // It went on tracking after the hang (ended 3 s in): to the last loop's frames, in sensor
+  // time (slow builds track fewer of them, the newest still).
+  ASSERT_FALSE(r.trajectory.empty());
+  EXPECT_GT(r.trajectory.back().t_ns - r.trajectory.front().t_ns, 4 * kNsPerS);
 }
 
 // (b) As fast as possible, deterministic: two runs give the same poses and walls, bit for bit.
