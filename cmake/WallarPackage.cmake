@@ -41,13 +41,15 @@ set(CPACK_PACKAGE_NAME wallar)
 set(CPACK_PACKAGE_VERSION ${PROJECT_VERSION})
 set(CPACK_PACKAGING_INSTALL_PREFIX /usr)
 set(CPACK_STRIP_FILES ON)
-set(CPACK_PACKAGE_CONTACT "wallar developers <wallar@users.noreply.github.com>")
+# Whoever builds packages for others sets their own name and address here.
+set(WALLAR_PACKAGE_MAINTAINER "wallar developers <wallar@users.noreply.github.com>"
+    CACHE STRING "Maintainer field of the .deb")
+set(CPACK_PACKAGE_CONTACT "${WALLAR_PACKAGE_MAINTAINER}")
 set(CPACK_PACKAGE_DESCRIPTION_SUMMARY "stereo video see-through AR headset firmware")
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
 set(CPACK_DEBIAN_PACKAGE_ARCHITECTURE ${_deb_arch})
 set(CPACK_DEBIAN_PACKAGE_SECTION misc)
 set(CPACK_DEBIAN_PACKAGE_PRIORITY optional)
-# The long description: lines of the control file's Description field after the summary.
 # The extended description (the summary above is its first line); an empty line is a paragraph.
 string(CONCAT CPACK_DEBIAN_PACKAGE_DESCRIPTION
        "wallar runs a stereo video see-through augmented-reality headset on a Linux\n"
