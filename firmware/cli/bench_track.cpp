@@ -35,6 +35,7 @@
 #include "wallar/drivers/recording/euroc.hpp"
 #include "wallar/drivers/recording/jpeg.hpp"
 #include "wallar/dsp/tracking/mapper.hpp"
+#include "wallar/dsp/tracking/synthetic_motion.hpp"
 #include "wallar/dsp/tracking/synthetic_room.hpp"
 #include "wallar/dsp/stereo/rectifier.hpp"
 #include "wallar/dsp/tracking/tracker.hpp"
@@ -64,12 +65,7 @@ Sequence euroc_sequence(const std::string& recording) {
 }
 
 Sequence synthetic_sequence() {
-  dsp::SyntheticRoom room;
-  room.x_min_m = -2.0;
-  room.x_max_m = 2.0;
-  room.y_min_m = -2.5;
-  room.y_max_m = 2.5;
-  room.z_max_m = 2.5;
+  const dsp::SyntheticRoom room = dsp::small_room();
   const dsp::SyntheticCamera cam;
   Sequence s;
   s.rig = dsp::synthetic_rig(cam);

@@ -19,6 +19,7 @@
 #include "wallar/drivers/camera/stereo_capture.hpp"
 #include "wallar/dsp/imu/attitude_filter.hpp"
 #include "wallar/dsp/tracking/mapper.hpp"
+#include "wallar/dsp/tracking/synthetic_motion.hpp"
 #include "wallar/dsp/tracking/synthetic_room.hpp"
 #include "wallar/dsp/tracking/tracker.hpp"
 #include "wallar/dsp/walls/synthetic.hpp"
@@ -243,19 +244,13 @@ TEST(Allocations, StereoCaptureAllocatesNothingAfterStart) {
 
 TEST(Allocations, TrackerTracksAHundredFramesWithoutAllocating) {
   using namespace wallar;
-  dsp::SyntheticRoom room;
-  room.x_min_m = -2.0;
-  room.x_max_m = 2.0;
-  room.y_min_m = -2.5;
-  room.y_max_m = 2.5;
-  room.z_max_m = 2.5;
+  const dsp::SyntheticRoom room = dsp::small_room();
   const dsp::SyntheticCamera cam;
   const RigCalibration rig = dsp::synthetic_rig(cam);
   // 25 poses of a moving path, played forth and back: key-frames, re-finding and corrections
   // (under an emulator, where rendering is slow, the first 10 of them).
   const int poses = short_run() ? 10 : 25;
-  const std::vector<StampedPose> path =
-      dsp::synthetic_trajectory(room, poses, 5.0);
+  const std::vector<StampedPose> path = dsp::synthetic_trajectory(room, poses, 5.0);
   std::vector<std::array<Image, 2>> pairs;
   for (const StampedPose& p : path) {
     pairs.push_back({dsp::render_room_image(room, cam, p.T_world_body, 0),

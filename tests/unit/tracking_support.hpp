@@ -13,6 +13,7 @@
 #include "wallar/dsp/tracking/features.hpp"
 #include "wallar/dsp/tracking/fixed_vector.hpp"
 #include "wallar/dsp/tracking/gray_image.hpp"
+#include "wallar/dsp/tracking/synthetic_motion.hpp"
 #include "wallar/dsp/tracking/synthetic_room.hpp"
 
 namespace wallar::test {
@@ -32,16 +33,7 @@ inline dsp::FixedVector<dsp::Corner> detect_corners(const Image& img, std::size_
   return corners;
 }
 
-/// A room small enough that its walls are 2-3 m from the path (EuRoC-like rig).
-inline dsp::SyntheticRoom small_room(std::uint64_t texture_seed = 1) {
-  dsp::SyntheticRoom room;
-  room.x_min_m = -2.0;
-  room.x_max_m = 2.0;
-  room.y_min_m = -2.5;
-  room.y_max_m = 2.5;
-  room.z_max_m = 2.5;
-  room.texture_seed = texture_seed;
-  return room;
-}
+/// The room small enough that its walls are 2-3 m from the path (EuRoC-like rig).
+using dsp::small_room;
 
 }  // namespace wallar::test

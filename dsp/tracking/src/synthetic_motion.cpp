@@ -222,6 +222,17 @@ SyntheticRoom headset_room(std::uint64_t texture_seed) {
   return room;
 }
 
+SyntheticRoom small_room(std::uint64_t texture_seed) {
+  SyntheticRoom room;
+  room.x_min_m = -2.0;
+  room.x_max_m = 2.0;
+  room.y_min_m = -2.5;
+  room.y_max_m = 2.5;
+  room.z_max_m = 2.5;
+  room.texture_seed = texture_seed;
+  return room;
+}
+
 HeadMotionModel::HeadMotionModel(const SyntheticRoom& room, const HeadMotionConfig& config)
     : room_(room), config_(config) {
   const Room r = dims(room);

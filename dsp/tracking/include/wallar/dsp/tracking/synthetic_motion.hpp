@@ -120,6 +120,9 @@ class HeadMotionModel {
 
 /// An 8 x 6 x 3 m room centred on the origin: room enough to walk laps in.
 [[nodiscard]] SyntheticRoom headset_room(std::uint64_t texture_seed = 1);
+/// A 4 x 5 x 2.5 m room whose walls are 2-3 m from synthetic_trajectory's path (an EuRoC-like
+/// rig's view): the tracker's tests and `wallar bench`'s synthetic sequence.
+[[nodiscard]] SyntheticRoom small_room(std::uint64_t texture_seed = 1);
 
 /// The headset: the rectified stereo pair render_room draws, where it sits on the IMU, and the
 /// IMU's noise densities (EuRoC sensor.yaml: continuous-time densities; the discrete white noise
