@@ -12,7 +12,7 @@
 
 #include "wallar/firmware/appliance/allocation_count.hpp"
 
-#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+#if !defined(WALLAR_SANITIZED)
 
 namespace {
 const bool kRegistered = (wallar::firmware::g_allocations_counted = true);

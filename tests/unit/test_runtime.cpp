@@ -28,12 +28,8 @@
 #include "wallar/firmware/rt_thread.hpp"
 #include "wallar/firmware/wakeup.hpp"
 
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#if defined(WALLAR_SANITIZED)
 #define WALLAR_RUNTIME_TEST_SANITIZED 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define WALLAR_RUNTIME_TEST_SANITIZED 1
-#endif
 #endif
 
 namespace wallar::test {

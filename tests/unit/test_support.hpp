@@ -27,7 +27,7 @@ namespace fs = std::filesystem;
 /// sanitizer (ASan and TSan run the tracker 5-15x slower), where the slowest tests run the same
 /// checks on fewer seeds, frames or rounds, so CI's stages fit its budget.
 inline bool short_tests() {
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#if defined(WALLAR_SANITIZED)
   return true;
 #else
   return std::getenv("WALLAR_SHORT_TESTS") != nullptr;
