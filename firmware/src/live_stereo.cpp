@@ -51,15 +51,18 @@ std::array<drivers::V4l2CameraConfig, 2> camera_configs(const BoardConfig& board
 }
 
 struct LiveStereo::Parts {
-  drivers::LinuxV4l2System sys;
+  // Not owned: a frame a consumer still holds after the capture is gone unmaps through it.
+  drivers::V4l2System* sys = nullptr;
   std::unique_ptr<GpioTrigger> trigger;
   std::unique_ptr<drivers::StereoCapture> capture;
   std::array<std::string, 2> names;
   Log log;
 };
 
-LiveStereo::LiveStereo(const BoardConfig& board, source::SensorSink& sink, Log log)
+LiveStereo::LiveStereo(const BoardConfig& board, source::SensorSink& sink, Log log,
+                       drivers::V4l2System& sys)
     : parts_(std::make_unique<Parts>()) {
+  parts_->sys = &sys;
   const auto configs = camera_configs(board);
   parts_->names = {configs[0].name + " camera (" + configs[0].device + ")",
                    configs[1].name + " camera (" + configs[1].device + ")"};
@@ -80,7 +83,7 @@ LiveStereo::LiveStereo(const BoardConfig& board, source::SensorSink& sink, Log l
     parts->log(line);
   };
   parts_->capture = std::make_unique<drivers::StereoCapture>(
-      parts_->sys, configs, sink, std::move(sc), parts_->trigger.get(), drivers::reset_uvc_camera);
+      *parts_->sys, configs, sink, std::move(sc), parts_->trigger.get(), drivers::reset_uvc_camera);
   parts_->capture->start();
 }
 

@@ -6,11 +6,14 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <string>
 #include <vector>
 
 #include "fake_v4l2.hpp"
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/camera/stereo_capture.hpp"
+#include "wallar/firmware/board.hpp"
+#include "wallar/firmware/live_stereo.hpp"
 
 namespace wallar::test {
 namespace {
@@ -478,6 +481,40 @@ TEST_F(V4l2Test, AHardwareTriggerExposesBothCamerasTogether) {
   EXPECT_EQ(l.produced(), cap.counters().triggers);
   // Pulses are a period apart: 30 pairs span 29 periods.
   EXPECT_EQ(cap.counters().missed_triggers, 0u);
+}
+
+// The appliance tears its capture side down at the stop while the tracker or the view may still
+// hold the last pair (found by the hardware-in-the-loop boot: wallar crashed at every stop after
+// a camera had been reopened, since the frames unmapped through a system-call object the capture
+// owned). Such a frame stays readable, and releasing it unmaps through the system that mapped
+// it, which outlives it.
+TEST(LiveStereoTeardown, FramesHeldPastTheCapturesEndUnmapThroughTheSystemThatMappedThem) {
+  FakeV4l2 sys;
+  sys.add_device("/dev/video0");
+  sys.add_device("/dev/video2");
+  firmware::BoardConfig board;
+  board.source = firmware::BoardConfig::Source::kLive;
+  board.cameras[0] = {"/dev/video0", "", 64, 48, 30.0, "GREY"};
+  board.cameras[1] = {"/dev/video2", "", 64, 48, 30.0, "GREY"};
+  Sink sink;
+  sink.keep = true;
+  {
+    firmware::LiveStereo live(
+        board, sink, [](const std::string&) {}, sys);
+    const std::atomic<bool> stop{false};
+    live.run(sys.now_ns() + 500 * kNsPerMs, stop);
+  }
+  ASSERT_GE(sink.pair_count, 5);
+  ASSERT_FALSE(sink.pairs.empty());
+  EXPECT_GT(sys.mappings(), 0);  // the held frames keep their buffers mapped
+  const Image& held = sink.pairs.back().left.image;
+  ASSERT_NE(held.data(), nullptr);
+  EXPECT_EQ(held.width(), 64);
+  volatile std::uint8_t first = held.row(47)[63];  // readable after the capture is gone
+  (void)first;
+  sink.pairs.clear();
+  EXPECT_EQ(sys.mappings(), 0);  // unmapped through `sys`, alive
+  EXPECT_EQ(sys.open_fds(), 0);
 }
 
 }  // namespace

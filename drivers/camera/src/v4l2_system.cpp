@@ -12,6 +12,11 @@
 
 namespace wallar::drivers {
 
+V4l2System& linux_v4l2_system() {
+  static auto* const sys = new LinuxV4l2System();  // NOLINT: never destroyed (see the header)
+  return *sys;
+}
+
 int LinuxV4l2System::open(const char* path, int flags) { return ::open(path, flags); }
 int LinuxV4l2System::close(int fd) { return ::close(fd); }
 int LinuxV4l2System::ioctl(int fd, unsigned long request, void* arg) {  // NOLINT

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 
 #include "wallar/firmware/appliance/allocation_count.hpp"
@@ -13,6 +14,18 @@
 
 namespace wallar::firmware {
 namespace {
+
+/// A copy of `image` in a heap buffer of its own (empty stays empty).
+Image heap_copy(const Image& image) {
+  if (image.empty()) return image;
+  Image copy = Image::allocate(image.width(), image.height(), image.format());
+  const auto row_bytes = static_cast<std::size_t>(image.width()) *
+                         static_cast<std::size_t>(bytes_per_pixel(image.format()));
+  for (int y = 0; y < image.height(); ++y)
+    std::memcpy(copy.mutable_data() + static_cast<std::ptrdiff_t>(y) * copy.stride_bytes(),
+                image.row(y), row_bytes);
+  return copy;
+}
 
 constexpr const char* kCameraLostHud = "camera lost: IMU orientation, walls kept";
 constexpr const char* kImuLostHud = "IMU lost: 3-D wall search, no gyro prior";
@@ -55,6 +68,10 @@ void TrackingThread::run(const std::atomic<bool>& stop, std::atomic<std::uint64_
     // the samples after the newest frame. A tracker that fell behind thus never reads the IMU
     // running ahead of a frame still waiting as a lost camera.
     while (pipeline_.take_frame(frame)) {
+      // A tracker slower than the camera never leaves this loop (a frame is always waiting):
+      // a reset asked for meanwhile (the remote's R) applies before the next frame, not when
+      // the camera stops (found under emulation: a key press waited until a camera was pulled).
+      if (reset_requested_.exchange(false)) do_reset();
       drain_imu(frame.t_ns);
       on_frame(frame);
       frame = StereoFrame{};  // give the buffers back now
@@ -119,6 +136,15 @@ void TrackingThread::on_imu(const ImuSample& s) {
     camera_lost_ = true;
     ++degraded_.camera_lost;
     event(s.t_ns, "camera lost: IMU-only orientation, last wall model kept");
+    {
+      // The frozen image drawn from now on is a copy, so the lost camera's kernel buffers go
+      // back now: a device may come back only once its old queue is released (vivid's
+      // disconnect waits for every handle, mappings included), and a gone device's memory is
+      // freed either way. A rare transition, allowed to allocate like a reset.
+      const AllocationPause pause;
+      last_frame_.left.image = heap_copy(last_frame_.left.image);
+      last_frame_.right.image = heap_copy(last_frame_.right.image);
+    }
     R_world_body_at_loss_ = last_T_world_body_.linear();
     q_world_imu_at_loss_ = q_world_imu_last_frame_;
     last_imu_only_t_ns_ = -1;

@@ -18,6 +18,7 @@
 #include <string>
 
 #include "wallar/drivers/camera/stereo_capture.hpp"
+#include "wallar/drivers/camera/v4l2_system.hpp"
 #include "wallar/firmware/board.hpp"
 
 namespace wallar::firmware {
@@ -31,8 +32,10 @@ class LiveStereo {
   using Log = std::function<void(const std::string& line)>;
 
   /// Opens and starts both cameras (and the trigger line). Throws DeviceError naming the camera
-  /// and device when one cannot be opened or refuses the board's format.
-  LiveStereo(const BoardConfig& board, source::SensorSink& sink, Log log = {});
+  /// and device when one cannot be opened or refuses the board's format. `sys` must outlive
+  /// every frame delivered (frames may outlive this object): the product's never dies.
+  LiveStereo(const BoardConfig& board, source::SensorSink& sink, Log log = {},
+             drivers::V4l2System& sys = drivers::linux_v4l2_system());
   ~LiveStereo();
   LiveStereo(const LiveStereo&) = delete;
   LiveStereo& operator=(const LiveStereo&) = delete;

@@ -45,4 +45,10 @@ class LinuxV4l2System final : public V4l2System {
   TimeNs now_ns() override;
 };
 
+/// The process's one LinuxV4l2System. It is never destroyed: a camera's frames can outlive the
+/// camera (a consumer still holds one while the capture side is torn down), and the last one
+/// released unmaps its kernel buffer through the system that mapped it, so that system must
+/// outlive every frame. A fake in a test must likewise outlive the frames it mapped.
+V4l2System& linux_v4l2_system();
+
 }  // namespace wallar::drivers
