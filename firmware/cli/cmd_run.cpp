@@ -73,6 +73,8 @@ nlohmann::json to_json(const firmware::ApplianceReport& r, const firmware::RunOu
     j["misses"] = s.misses;
     stages.push_back(j);
   }
+  nlohmann::json devices = nlohmann::json::object();
+  for (const auto& [name, counters] : r.devices) devices[name] = counters;
   const firmware::DegradedCounters& d = r.degraded;
   const firmware::TrackingCounters& c = r.tracking;
   nlohmann::json j = {
@@ -110,9 +112,11 @@ nlohmann::json to_json(const firmware::ApplianceReport& r, const firmware::RunOu
         {"faults_injected", d.faults_injected},
         {"resets", d.resets}}},
       {"events", r.events},
+      {"devices", devices},
       {"view",
        {{"posted", r.view.posted},
         {"drawn", r.view.view.frames},
+        {"on_screen", r.view.view.on_screen},
         {"skipped", r.view.skipped},
         {"written", r.view.view.written},
         {"losses", r.view.losses}}},
@@ -200,6 +204,16 @@ int run_run_command(const RunArgs& args) {
         static_cast<unsigned long long>(report.imu_dropped), report.map_points,
         report.map_keyframes, report.stop_reason.c_str(), ns_to_s(report.wall_time_ns));
     for (const std::string& e : report.events) std::printf("  event: %s\n", e.c_str());
+    for (const auto& [name, counters] : report.devices) {
+      std::printf("  %s: %s\n", name.c_str(), counters.c_str());
+    }
+    if (report.view.view.frames > 0) {
+      std::printf("  view: %llu drawn, %llu on screen, %llu present failures, %llu reopens\n",
+                  static_cast<unsigned long long>(report.view.view.frames),
+                  static_cast<unsigned long long>(report.view.view.on_screen),
+                  static_cast<unsigned long long>(report.view.view.present_failures),
+                  static_cast<unsigned long long>(report.view.reopens));
+    }
     if (out.room) {
       std::printf("wall model (%s, %llu reconstructions, world = first body pose):\n",
                   firmware::to_string(report.room_gravity),

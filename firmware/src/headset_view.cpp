@@ -85,6 +85,7 @@ bool HeadsetView::show(const StereoFrame& frame, TimeNs capture_t_ns, const SE3d
     return false;
   }
   stats_.last_t_ns = frame.t_ns;
+  stats_.on_screen = output_->frames_on_screen();
   if (stats_.render_ns.size() < kKeptFrames) stats_.render_ns.push_back(t.render_ns);
   if (t.latency_ns >= 0 && stats_.latency_ns.size() < kKeptFrames) {
     stats_.latency_ns.push_back(t.latency_ns);

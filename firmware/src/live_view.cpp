@@ -54,6 +54,7 @@ void accumulate(HeadsetViewStats& into, const HeadsetViewStats& from) {
   into.frames += from.frames;
   into.written += from.written;
   into.present_failures += from.present_failures;
+  into.on_screen += from.on_screen;
   if (from.last_t_ns >= 0) into.last_t_ns = from.last_t_ns;
   into.render_ns.insert(into.render_ns.end(), from.render_ns.begin(), from.render_ns.end());
   into.latency_ns.insert(into.latency_ns.end(), from.latency_ns.begin(), from.latency_ns.end());

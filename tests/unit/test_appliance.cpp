@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "test_support.hpp"
@@ -25,7 +26,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#if defined(WALLAR_SANITIZED)
 constexpr bool kSanitized = true;
 #else
 constexpr bool kSanitized = false;
@@ -121,6 +122,33 @@ TEST(ApplianceHil, ATrackerSlowerThanTheCameraKeepsItsHeartbeat) {
   const ApplianceReport r = run_appliance(board, o, stop);
   EXPECT_GT(r.frames_overwritten, 0u) << "the tracker kept up: no backlog, nothing shown";
   for (const std::string& line : lines) EXPECT_EQ(line.find("stalled"), std::string::npos) << line;
+}
+
+// A reset asked for while the tracker is slower than the camera (a frame always waiting) applies
+// at the next frame, not when the camera stops: under emulation the remote's R waited 16 s,
+// until a camera was pulled.
+TEST(ApplianceHil, AResetAskedOfABackloggedTrackerAppliesAtTheNextFrame) {
+  const BoardConfig board = sim_board();
+  ApplianceOptions o = quiet_options();
+  o.view = false;
+  o.replay.rate = 20.0;                     // a frame every 2.5 ms
+  o.replay_plan = hil::replay_plan(0, {});  // until stopped
+  o.max_duration_ns = 3 * kNsPerS;
+  // 20 ms a frame at least, as under emulation: a newer frame is always waiting.
+  o.before_frame = [](TimeNs) { std::this_thread::sleep_for(std::chrono::milliseconds(20)); };
+  TimeNs first_ns = -1;
+  bool asked = false;
+  o.test_input = [&](TimeNs now_ns) {
+    if (first_ns < 0) first_ns = now_ns;
+    if (asked || now_ns - first_ns < kNsPerS) return drivers::InputAction::kNone;
+    asked = true;
+    return drivers::InputAction::kReset;
+  };
+  const std::atomic<bool> stop{false};
+  const ApplianceReport r = run_appliance(board, o, stop);
+  ASSERT_TRUE(asked);
+  EXPECT_GT(r.frames_overwritten, 0u) << "the tracker kept up: nothing was waiting";
+  EXPECT_EQ(r.degraded.resets, 1u) << testing::PrintToString(r.events);
 }
 
 // A tracking thread that hangs (the tracking-hang fault: 2.5 s asleep before a frame) is seen by
@@ -225,6 +253,23 @@ TEST(ApplianceHil, RecoversFromInjectedFaults) {
 // One pipeline: the offline commands' run over a recording (`wallar track --lockstep`: a
 // replay board made from the path, built-in tracker sizes) and the sim board's deterministic
 // run (`wallar run --deterministic`) give the same poses, bit for bit, and the same walls.
+// `wallar track --board` (or render, eval) with a headset's board on a laptop: the board sizes
+// the pipeline, and its buttons, remote and trigger are not opened (they are not there).
+TEST(ApplianceHil, AnOfflineRunOpensNoneOfTheBoardsInputs) {
+  const recording::EurocRecording rec = recording::read_euroc(test::bundled_recording());
+  const BoardConfig board =
+      load_board(std::string(WALLAR_SOURCE_DIR) + "/board/qemu-hil.yaml");  // a uinput remote
+  BoardConfig pi = load_board(std::string(WALLAR_SOURCE_DIR) + "/board/rpi5.yaml");  // GPIO
+  pi.keys = "/dev/input/no-such-event-device";
+  const std::atomic<bool> stop{false};
+  const BoardConfig& pi_board = pi;
+  for (const BoardConfig* b : {&board, &pi_board}) {
+    const ApplianceReport r =
+        run_over_recording(rec, *b, offline_options(ApplianceMode::kLockStep), stop);
+    EXPECT_EQ(r.trajectory.size(), 40u) << b->name;
+  }
+}
+
 TEST(ApplianceHil, OfflineRunOverTheRecordingIsTheSimBoardsDeterministicRun) {
   const recording::EurocRecording rec = recording::read_euroc(test::bundled_recording());
   const std::atomic<bool> stop{false};

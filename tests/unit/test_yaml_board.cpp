@@ -85,6 +85,22 @@ TEST(Board, TheShippedBoardFilesLoad) {
   ASSERT_TRUE(pi.exit_button);
   EXPECT_TRUE(pi.exit_button->active_low);
 
+  EXPECT_TRUE(pi.keys.empty());
+
+  // The hardware-in-the-loop board: vivid cameras, a BNO055 on the UART, KMS, a uinput remote.
+  const auto hil = firmware::load_board(fs::path(WALLAR_SOURCE_DIR) / "board" / "qemu-hil.yaml");
+  EXPECT_EQ(hil.source, firmware::BoardConfig::Source::kLive);
+  EXPECT_EQ(hil.cameras[0].device, "/dev/video0");
+  EXPECT_EQ(hil.cameras[1].pixel_format, "GREY");
+  EXPECT_EQ(hil.cameras[1].width_px, 752);
+  EXPECT_EQ(hil.imu.driver, "bno055");
+  EXPECT_EQ(hil.imu.bus, "/dev/ttyAMA0");
+  EXPECT_EQ(hil.display.backend, "kms");
+  EXPECT_EQ(hil.display.connector, "Virtual-1");
+  EXPECT_EQ(hil.keys, "name:wallar-hil-remote");
+  ASSERT_TRUE(hil.calibration);
+  EXPECT_EQ(*hil.calibration, fs::path("/var/lib/wallar/recordings/euroc_v1_01_still"));
+
   // What the camera driver gets from it.
   const auto cams = firmware::camera_configs(pi);
   EXPECT_EQ(cams[0].name, "left");

@@ -180,6 +180,7 @@ class KmsOutput final : public DisplayOutput {
   [[nodiscard]] bool present(TimeNs& t_ns) override;
   void read_pixels(std::span<std::uint8_t> rgba) override;
   [[nodiscard]] const std::string& last_error() const override { return last_error_; }
+  [[nodiscard]] std::uint64_t frames_on_screen() const override { return on_screen_; }
 
  private:
   static void on_page_flip(int fd, unsigned int sequence, unsigned int tv_sec, unsigned int tv_usec,
@@ -212,6 +213,7 @@ class KmsOutput final : public DisplayOutput {
   TimeNs flip_t_ns_ = 0;
   gbm_bo* front_bo_ = nullptr;    //!< on screen
   gbm_bo* pending_bo_ = nullptr;  //!< queued by a flip that timed out
+  std::uint64_t on_screen_ = 0;   //!< the mode set plus the flips whose event arrived
 };
 
 KmsOutput::KmsOutput(const DisplayOptions& options) : fd_(open_card(options.card)) {
@@ -397,6 +399,7 @@ bool KmsOutput::present(TimeNs& t_ns) {
   }
   if (front_bo_ != nullptr) gbm_surface_release_buffer(gbm_surface_.get(), front_bo_);
   front_bo_ = bo;
+  ++on_screen_;
   return true;
 }
 

@@ -174,7 +174,8 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
   if (const YamlNode* c = root.find("calibration")) b.calibration = resolve(base_dir, *c);
 
   if (const YamlNode* in = root.find("input")) {
-    in->check_keys({"reset_button", "exit_button"});
+    in->check_keys({"reset_button", "exit_button", "keys"});
+    if (const YamlNode* k = in->find("keys")) b.keys = k->as_string();
     if (const YamlNode* r = in->find("reset_button")) b.reset_button = parse_gpio(*r);
     if (const YamlNode* e = in->find("exit_button")) b.exit_button = parse_gpio(*e);
   }

@@ -17,7 +17,8 @@ drivers::GpioLineSpec gpio_spec(const GpioLine& line) {
 }  // namespace
 
 Inputs::Inputs(const BoardConfig& board, const std::string& keys) {
-  if (!keys.empty()) keys_ = std::make_unique<drivers::EvdevKeys>(keys);
+  const std::string& spec = keys.empty() ? board.keys : keys;
+  if (!spec.empty()) keys_ = std::make_unique<drivers::EvdevKeys>(spec);
   constexpr DurationNs kDebounceNs = 20 * kNsPerMs;
   if (board.reset_button) {
     reset_ = std::make_unique<drivers::GpioButton>(gpio_spec(*board.reset_button), "wallar-reset",

@@ -52,6 +52,16 @@ std::vector<const RtThread*> LiveModule::threads() const {
   return t;
 }
 
+std::vector<std::pair<std::string, std::string>> LiveModule::device_counters() const {
+  std::vector<std::pair<std::string, std::string>> out;
+  if (cameras_) {
+    out.emplace_back("left", drivers::format_counters(cameras_->capture().camera(0).counters()));
+    out.emplace_back("right", drivers::format_counters(cameras_->capture().camera(1).counters()));
+  }
+  if (imu_) out.emplace_back("imu", drivers::format_counters(imu_->driver().counters()));
+  return out;
+}
+
 std::exception_ptr LiveModule::error() const {
   if (capture_ && capture_->failed()) return capture_->exception();
   if (imu_thread_ && imu_thread_->failed()) return imu_thread_->exception();

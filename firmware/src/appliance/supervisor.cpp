@@ -64,6 +64,12 @@ ApplianceReport run_over_recording(const recording::EurocRecording& rec, const B
   BoardConfig replay_board = board;
   replay_board.source = BoardConfig::Source::kReplay;
   replay_board.replay.recording = rec.mav0;
+  // Offline, the board sizes the pipeline; none of its devices is opened, inputs included
+  // (`wallar track --board board/rpi5.yaml` on a laptop has no gpiochip4, nor a remote).
+  replay_board.reset_button.reset();
+  replay_board.exit_button.reset();
+  replay_board.keys.clear();
+  replay_board.camera_trigger.reset();
   if (replay_board.name.empty()) replay_board.name = "offline";
   return run_modules(replay_board, options, stop, nullptr, &rec);
 }
@@ -299,7 +305,10 @@ ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& op
       report.stop_reason = replay ? "end of replay" : "sensors stopped";
       break;
     }
-    switch (inputs.poll(now)) {
+    drivers::InputAction action = inputs.poll(now);
+    if (action == drivers::InputAction::kNone && options.test_input)
+      action = options.test_input(now);
+    switch (action) {
       case drivers::InputAction::kExit:
         report.stop_reason = "exit input";
         report.interrupted = true;
@@ -343,6 +352,7 @@ ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& op
   }
   // A source that failed while the supervisor saw it finish: its error still counts.
   if (!source_error) source_error = source->error();
+  report.devices = source->device_counters();
   tracking_thread.join();
   if (reconstruct_thread) reconstruct_thread->join();
   const DurationNs run_ns = monotonic_now_ns() - t_start;

@@ -40,9 +40,11 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "wallar/core/pose.hpp"
+#include "wallar/drivers/input/evdev_keys.hpp"
 #include "wallar/drivers/source/replay_source.hpp"
 #include "wallar/dsp/tracking/tracker.hpp"
 #include "wallar/dsp/walls/room.hpp"
@@ -97,6 +99,9 @@ struct ApplianceOptions {
   bool realtime = true;    //!< SCHED_FIFO, affinity, mlockall where permitted
   std::uint64_t seed = 1;  //!< wall search seeds (seed + run index)
   std::string input_keys;  //!< evdev keyboard ("/dev/input/eventN", "name:..."), or none
+  /// Tests: one more input beside the board's, asked by the supervisor at every tick (its
+  /// thread) when the board's gave nothing.
+  std::function<drivers::InputAction(TimeNs now_ns)> test_input;
   /// One line per event (start, transitions, warnings); default: stderr.
   std::function<void(const std::string&)> log;
 };
@@ -125,6 +130,8 @@ struct ApplianceReport {
   std::uint64_t imu_samples = 0, imu_dropped = 0;
   std::uint64_t frames_in = 0, frames_overwritten = 0, frames_tracked = 0;
   LiveViewStats view;
+  /// The live devices' driver counters at the end (SourceModule::device_counters()).
+  std::vector<std::pair<std::string, std::string>> devices;
   std::vector<std::string> events;  //!< transitions and warnings, in order
   std::vector<ThreadRow> threads;
   std::vector<StageRow> stages;

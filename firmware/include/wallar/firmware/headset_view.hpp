@@ -45,7 +45,8 @@ struct HeadsetViewStats {
   std::uint64_t frames = 0;
   std::uint64_t written = 0;
   std::uint64_t present_failures = 0;
-  TimeNs last_t_ns = -1;                 //!< the camera time of the last frame shown
+  std::uint64_t on_screen = 0;  //!< frames the display confirmed (kms: mode set + page flips)
+  TimeNs last_t_ns = -1;        //!< the camera time of the last frame shown
   std::vector<std::int64_t> render_ns;   //!< per frame (the first 32768)
   std::vector<std::int64_t> latency_ns;  //!< per frame with a capture time (the first 32768)
   std::vector<std::string> written_files;

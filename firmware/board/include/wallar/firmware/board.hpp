@@ -88,6 +88,9 @@ struct BoardConfig {
   std::optional<std::filesystem::path> calibration;  //!< EuRoC-style folder or Kalibr YAML
   std::optional<GpioLine> reset_button;
   std::optional<GpioLine> exit_button;
+  /// input.keys: an evdev keyboard or headset remote (R resets, Q/Esc exits), as
+  /// `wallar run --keys` takes it (/dev/input/..., or name:TEXT); empty: none. --keys wins.
+  std::string keys;
 };
 
 /// Reads and checks a board file; throws InputError "FILE:LINE: ..." naming the bad key.

@@ -27,6 +27,7 @@ class LiveModule final : public SourceModule {
   [[nodiscard]] std::string describe() const override;
   [[nodiscard]] std::vector<const RtThread*> threads() const override;
   [[nodiscard]] std::exception_ptr error() const override;
+  [[nodiscard]] std::vector<std::pair<std::string, std::string>> device_counters() const override;
 
  private:
   const BoardConfig& board_;

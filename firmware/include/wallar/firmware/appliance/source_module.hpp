@@ -11,6 +11,7 @@
 #include <atomic>
 #include <exception>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "wallar/core/calibration.hpp"
@@ -36,6 +37,11 @@ class SourceModule {
   /// The exception a source thread ended with (null if none), e.g. the replay's InputError for
   /// an image that cannot be read.
   [[nodiscard]] virtual std::exception_ptr error() const = 0;
+  /// Each device's driver counters ({"left", "frames=.. reopens=.."}, ...), one line per
+  /// device; empty for a replay. Only after join_within() returned true.
+  [[nodiscard]] virtual std::vector<std::pair<std::string, std::string>> device_counters() const {
+    return {};
+  }
 };
 
 /// The camera's frame period (20 Hz when its rate is unknown).

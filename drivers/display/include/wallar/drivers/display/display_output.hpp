@@ -72,6 +72,9 @@ class DisplayOutput {
   /// `rgba` must hold width_px() * height_px() * 4 bytes.
   virtual void read_pixels(std::span<std::uint8_t> rgba) = 0;
   [[nodiscard]] virtual const std::string& last_error() const = 0;
+  /// Frames the display confirmed on screen: kms counts the mode set and every page flip whose
+  /// event arrived; headless shows nothing (0).
+  [[nodiscard]] virtual std::uint64_t frames_on_screen() const { return 0; }
 };
 
 /// The frame last drawn (before present(); headless: also after), as a fresh 8-bit RGB image
