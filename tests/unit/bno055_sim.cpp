@@ -13,6 +13,7 @@
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
+#include <utility>
 
 namespace wallar::test {
 namespace {
@@ -42,7 +43,16 @@ drivers::bno055::RawBurst bno055_motion(std::uint32_t n) {
   return r;
 }
 
-Bno055Sim::Bno055Sim() {
+Bno055Sim::Bno055Sim(int fd, Motion motion)
+    : master_(fd), owns_fds_(false), motion_(std::move(motion)) {
+  ::fcntl(master_, F_SETFL, ::fcntl(master_, F_GETFL) | O_NONBLOCK);
+  reset_registers();
+}
+
+Bno055Sim::Bno055Sim()
+    : motion_([](std::uint64_t n, TimeNs /*now_ns*/) {
+        return bno055_motion(static_cast<std::uint32_t>(n));
+      }) {
   char name[128] = {};
   if (::openpty(&master_, &slave_, name, nullptr, nullptr) != 0) {
     throw std::runtime_error("openpty failed");
@@ -57,6 +67,7 @@ Bno055Sim::Bno055Sim() {
 }
 
 Bno055Sim::~Bno055Sim() {
+  if (!owns_fds_) return;
   ::close(master_);
   ::close(slave_);  // held open so the master never sees a hang-up between driver opens
 }
@@ -76,7 +87,7 @@ void Bno055Sim::send(const std::vector<std::uint8_t>& bytes) {
   out_.insert(out_.end(), bytes.begin(), bytes.end());
 }
 
-void Bno055Sim::answer_burst(std::uint8_t reg, std::uint8_t len) {
+void Bno055Sim::answer_burst(std::uint8_t reg, std::uint8_t len, TimeNs now_ns) {
   if (ignore_next > 0) {
     --ignore_next;
     return;
@@ -86,7 +97,7 @@ void Bno055Sim::answer_burst(std::uint8_t reg, std::uint8_t len) {
     send({0xEE, status_next});
     return;
   }
-  const drivers::bno055::RawBurst m = bno055_motion(static_cast<std::uint32_t>(bursts_served));
+  const drivers::bno055::RawBurst m = motion_(bursts_served, now_ns);
   for (int i = 0; i < 3; ++i) {
     put_i16(regs, static_cast<std::uint8_t>(0x08 + 2 * i), m.acc[i]);
     put_i16(regs, static_cast<std::uint8_t>(0x0E + 2 * i), m.mag[i]);
@@ -134,7 +145,7 @@ void Bno055Sim::handle(const std::uint8_t* req, std::size_t len, TimeNs now_ns, 
     return;
   }
   if (reg == reg_addr(Reg::kAccDataXLsb) && n == drivers::bno055::kBurstBytes) {
-    answer_burst(reg, n);
+    answer_burst(reg, n, now_ns);
     return;
   }
   std::vector<std::uint8_t> frame{0xBB, n};

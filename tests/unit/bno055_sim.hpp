@@ -15,6 +15,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -30,7 +31,14 @@ drivers::bno055::RawBurst bno055_motion(std::uint32_t n);
 
 class Bno055Sim {
  public:
+  /// What the n-th burst read carries, answered at now_ns (the sim's clock).
+  using Motion = std::function<drivers::bno055::RawBurst(std::uint64_t n, TimeNs now_ns)>;
+
+  /// A pty of its own, serving bno055_motion(n).
   Bno055Sim();
+  /// Answers on `fd`, which the caller opened (a tty, a socket) and keeps: the
+  /// hardware-in-the-loop host side (tests/hil/bno055_host.cpp) serves a recording this way.
+  Bno055Sim(int fd, Motion motion);
   ~Bno055Sim();
   Bno055Sim(const Bno055Sim&) = delete;
   Bno055Sim& operator=(const Bno055Sim&) = delete;
@@ -67,12 +75,14 @@ class Bno055Sim {
 
  private:
   void handle(const std::uint8_t* req, std::size_t len, TimeNs now_ns, bool write);
-  void answer_burst(std::uint8_t reg, std::uint8_t len);
+  void answer_burst(std::uint8_t reg, std::uint8_t len, TimeNs now_ns);
   void send(const std::vector<std::uint8_t>& bytes);
   void reset_registers();
 
   int master_ = -1;
   int slave_ = -1;
+  bool owns_fds_ = true;
+  Motion motion_;
   std::string slave_path_;
   std::vector<std::uint8_t> rx_;
   std::vector<std::uint8_t> out_;       // bytes to write at the end of this pump
