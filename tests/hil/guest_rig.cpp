@@ -6,6 +6,7 @@
 ///
 ///   wallar_hil_rig play RECORDING [--cams 0,2] [--outs 1,3] [--keys NAME]
 ///   wallar_hil_rig ctrl /dev/videoN ID VALUE
+///   wallar_hil_rig match RECORDING CAPTURED
 ///
 /// play: for each side, the vivid capture node (/dev/video{0,2}) gets HDMI DV timings of
 /// 1024x768 at exactly 20 Hz (CVT reduced blanking v2; vivid's capture accepts only standard
@@ -15,8 +16,8 @@
 /// copies the output buffer on screen into each capture buffer (loop_video). The outputs are
 /// paced by vivid's own 20 Hz output thread (the recording's rate, checked), one buffer back
 /// per tick; the player refills left and right with frame i together, so a pair's two images
-/// are the same recorded pair unless the two instances' ticks straddle a jiffy. Looping over
-/// the recording until SIGTERM. When an instance is disconnected (vivid's "disconnect"
+/// are the same recorded pair unless the two instances' ticks straddle a jiffy. Forth and back
+/// over the recording until SIGTERM. When an instance is disconnected (vivid's "disconnect"
 /// control: every ioctl answers ENODEV) the player closes it, which lets vivid reconnect once
 /// the product has closed it too, and reopens it; each reconnect is counted.
 /// --keys NAME creates a uinput keyboard named NAME (keys R and Q); SIGUSR1 presses R once.
@@ -24,6 +25,8 @@
 /// exit prints one line of counters.
 ///
 /// ctrl: sets one V4L2 control (vivid's error injection) and closes the node at once.
+/// match: which recorded pair each pair of a recording made through the cameras carries
+/// (`wallar record` on the HIL board), and whether its images are bit-identical.
 ///
 /// Threading: one thread; signals only set flags.
 #include <fcntl.h>
@@ -338,28 +341,41 @@ int play(const std::string& recording, const std::vector<int>& cams, const std::
   std::unique_ptr<Keyboard> keyboard;
   if (!keys.empty()) keyboard = std::make_unique<Keyboard>(keys);
 
-  std::uint64_t next = 0;  // the recorded pair the next queued buffers carry
+  std::uint64_t next = 0;  // the k-th pair the next queued buffers carry (pair frame_of(k))
   std::uint64_t reconnects = 0;
   std::uint64_t loops = 0;
-  auto start = [&](Output& o, int side) {
-    try {
-      if (!o.open()) return false;
-    } catch (const std::exception& e) {  // opened while vivid was still reconnecting
-      std::fprintf(stderr, "hil-rig: %s\n", e.what());
-      return false;
+  // Forth and back (0 .. n-1 .. 1, 0 ..): consecutive pairs are always neighbours in the
+  // recording, also across the loop, so a pair whose two sides straddle a frame change holds
+  // two neighbouring recorded images, never the recording's last and first.
+  const auto frame_of = [n](std::uint64_t k) {
+    const std::uint64_t period = 2 * (n - 1);
+    const std::uint64_t j = k % period;
+    return static_cast<std::size_t>(j < n ? j : period - j);
+  };
+  // Both outputs set up first, then started back to back: vivid's output threads tick from
+  // their STREAMON, so the two sides change frames within a jiffy of each other (set up one
+  // after the other under emulation, they were ~40 ms apart and most pairs mixed two frames).
+  auto start_both = [&] {
+    for (int side = 0; side < 2; ++side) {
+      out[side].close();
+      try {
+        if (!out[side].open()) return false;
+      } catch (const std::exception& e) {  // opened while vivid was still reconnecting
+        std::fprintf(stderr, "hil-rig: %s\n", e.what());
+        return false;
+      }
+      for (std::uint32_t i = 0; i < out[side].buffers(); ++i) {
+        if (!out[side].queue(i, frames[frame_of(next + i)][side])) return false;
+      }
     }
-    for (std::uint32_t i = 0; i < o.buffers(); ++i) {
-      if (!o.queue(i, frames[(next + i) % n][side])) return false;
-    }
-    return o.stream_on();
+    if (!out[0].stream_on() || !out[1].stream_on()) return false;
+    next += kBuffers;
+    return true;
   };
   for (int side = 0; side < 2; ++side) {
     configure_capture("/dev/video" + std::to_string(cams[side]));
   }
-  for (int side = 0; side < 2; ++side) {
-    if (!start(out[side], side)) fail(err(out[side].path() + ": streaming"));
-  }
-  next += kBuffers;
+  if (!start_both()) fail(err(out[0].path() + ", " + out[1].path() + ": streaming"));
   sd_notify(0, "READY=1");
   std::printf("hil-rig: streaming %s and %s\n", out[0].path().c_str(), out[1].path().c_str());
   std::fflush(stdout);
@@ -379,30 +395,28 @@ int play(const std::string& recording, const std::vector<int>& cams, const std::
   while (!g_stop.load()) {
     if (g_press.exchange(false) && keyboard) keyboard->press(KEY_R);
     if (g_report.exchange(false)) report();
-    for (int side = 0; side < 2; ++side) {
-      Output& o = out[side];
-      if (!o.lost) continue;
-      // Disconnected: close so vivid can reconnect (it does once every handle is closed), then
-      // reopen from the current frame.
-      o.close();
-      free_bufs[side].clear();
-      if (start(o, side)) {
-        o.lost = false;
+    if (out[0].lost || out[1].lost) {
+      // Disconnected: close both (vivid reconnects an instance once every handle on it is
+      // closed), then restart both together from the current frame, in step again.
+      const int gone = out[0].lost ? 0 : 1;
+      free_bufs[0].clear();
+      free_bufs[1].clear();
+      if (start_both()) {
+        out[0].lost = out[1].lost = false;
         ++reconnects;
-        std::printf("hil-rig: %s back after a disconnect\n", o.path().c_str());
+        std::printf("hil-rig: %s back after a disconnect\n", out[gone].path().c_str());
         std::fflush(stdout);
       } else {
-        o.close();
-        o.lost = true;
+        out[0].close();
+        out[1].close();
+        out[gone].lost = true;
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        continue;
       }
     }
     std::array<pollfd, 2> p{};
     for (int side = 0; side < 2; ++side) p[side] = {out[side].fd(), POLLOUT, 0};
-    if (out[0].lost || out[1].lost) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    } else if (::poll(p.data(), 2, 200) <= 0) {
-      continue;
-    }
+    if (::poll(p.data(), 2, 200) <= 0) continue;
     for (int side = 0; side < 2; ++side) {
       if (out[side].lost || out[side].fd() < 0) continue;
       const int b = out[side].dequeue();
@@ -417,12 +431,12 @@ int play(const std::string& recording, const std::vector<int>& cams, const std::
         if (free_bufs[side].empty()) continue;
         const int b = free_bufs[side].front();
         free_bufs[side].erase(free_bufs[side].begin());
-        if (!out[side].queue(static_cast<std::uint32_t>(b), frames[next % n][side])) {
+        if (!out[side].queue(static_cast<std::uint32_t>(b), frames[frame_of(next)][side])) {
           out[side].lost = true;
         }
       }
       ++next;
-      if (next % n == 0) ++loops;
+      if (next % (2 * (n - 1)) == 0) ++loops;
     }
   }
   report();
@@ -437,10 +451,60 @@ int ctrl(const std::string& path, std::uint32_t id, std::int32_t value) {
   return 0;
 }
 
+/// Which recorded pair each captured pair carries: every captured image is compared with the
+/// recording's images of the same side (mean absolute difference; 0 = bit-identical).
+int match(const std::string& recording, const std::string& captured) {
+  const recording::EurocRecording src = recording::read_euroc(recording);
+  const recording::EurocRecording cap = recording::read_euroc(captured);
+  const std::size_t n = std::min(src.cams[0].frames.size(), src.cams[1].frames.size());
+  std::array<std::vector<Image>, 2> images;
+  for (int side = 0; side < 2; ++side) {
+    for (std::size_t i = 0; i < n; ++i) {
+      images[side].push_back(recording::load_png_gray(
+          src.cams[side].image_path(src.cams[side].frames[i]), kWidth, kHeight));
+    }
+  }
+  auto mad = [](const Image& a, const Image& b) {
+    std::uint64_t sum = 0;
+    for (int y = 0; y < kHeight; ++y) {
+      for (int x = 0; x < kWidth; ++x)
+        sum += static_cast<std::uint64_t>(std::abs(a.row(y)[x] - b.row(y)[x]));
+    }
+    return static_cast<double>(sum) / (kWidth * kHeight);
+  };
+  const std::size_t pairs = std::min(cap.cams[0].frames.size(), cap.cams[1].frames.size());
+  std::size_t identical = 0, same_pair = 0;
+  double worst = 0.0;
+  for (std::size_t k = 0; k < pairs; ++k) {
+    std::array<std::size_t, 2> best_i{};
+    for (int side = 0; side < 2; ++side) {
+      const Image got = recording::load_png_gray(
+          cap.cams[side].image_path(cap.cams[side].frames[k]), kWidth, kHeight);
+      double best = 1e9;
+      for (std::size_t i = 0; i < n; ++i) {
+        const double d = mad(got, images[side][i]);
+        if (d < best) {
+          best = d;
+          best_i[side] = i;
+        }
+      }
+      worst = std::max(worst, best);
+      if (best == 0.0) ++identical;
+    }
+    if (best_i[0] == best_i[1]) ++same_pair;
+  }
+  std::printf(
+      "hil-rig: %zu captured pairs: %zu of %zu images bit-identical to a recorded one "
+      "(worst mean difference %.3f grey levels), %zu pairs carry one recorded pair\n",
+      pairs, identical, 2 * pairs, worst, same_pair);
+  return 0;
+}
+
 int usage() {
   std::fprintf(stderr,
                "usage: wallar_hil_rig play RECORDING [--cams 0,2] [--outs 1,3] [--keys NAME]\n"
-               "       wallar_hil_rig ctrl /dev/videoN ID VALUE\n");
+               "       wallar_hil_rig ctrl /dev/videoN ID VALUE\n"
+               "       wallar_hil_rig match RECORDING CAPTURED\n");
   return 2;
 }
 
@@ -459,6 +523,7 @@ int main(int argc, char** argv) {
   sigaction(SIGUSR2, &sa, nullptr);
   try {
     const std::string_view cmd = argv[1];
+    if (cmd == "match" && argc == 4) return match(argv[2], argv[3]);
     if (cmd == "ctrl" && argc == 5) {
       return ctrl(argv[2], static_cast<std::uint32_t>(std::strtoul(argv[3], nullptr, 0)),
                   static_cast<std::int32_t>(std::strtol(argv[4], nullptr, 0)));
