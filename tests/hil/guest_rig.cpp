@@ -472,14 +472,30 @@ int match(const std::string& recording, const std::string& captured) {
     }
     return static_cast<double>(sum) / (kWidth * kHeight);
   };
-  const std::size_t pairs = std::min(cap.cams[0].frames.size(), cap.cams[1].frames.size());
+  // The recording's two streams are written separately (a writer that falls behind drops
+  // frames of either), so the pairs are found again by time: each left frame with the right
+  // one nearest it, within half a frame period.
+  std::vector<std::array<std::size_t, 2>> pair_index;
+  const auto& right = cap.cams[1].frames;
+  for (std::size_t k = 0; k < cap.cams[0].frames.size(); ++k) {
+    const TimeNs t = cap.cams[0].frames[k].t_ns;
+    std::size_t best = right.size();
+    for (std::size_t j = 0; j < right.size(); ++j) {
+      if (std::abs(right[j].t_ns - t) <= kFramePeriodNs / 2 &&
+          (best == right.size() || std::abs(right[j].t_ns - t) < std::abs(right[best].t_ns - t))) {
+        best = j;
+      }
+    }
+    if (best < right.size()) pair_index.push_back({k, best});
+  }
+  const std::size_t pairs = pair_index.size();
   std::size_t identical = 0, same_pair = 0;
   double worst = 0.0;
   for (std::size_t k = 0; k < pairs; ++k) {
     std::array<std::size_t, 2> best_i{};
     for (int side = 0; side < 2; ++side) {
       const Image got = recording::load_png_gray(
-          cap.cams[side].image_path(cap.cams[side].frames[k]), kWidth, kHeight);
+          cap.cams[side].image_path(cap.cams[side].frames[pair_index[k][side]]), kWidth, kHeight);
       double best = 1e9;
       for (std::size_t i = 0; i < n; ++i) {
         const double d = mad(got, images[side][i]);
