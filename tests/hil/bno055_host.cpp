@@ -91,7 +91,6 @@ int main(int argc, char** argv) {
     const TimeNs t0_rec = rec.imu.front().t_ns;
     const DurationNs span_ns = rec.imu.back().t_ns - t0_rec;
     TimeNs first_burst_ns = -1;
-    std::uint8_t unit_sel = 0;
     test::Bno055Sim* sim_ptr = nullptr;
     test::Bno055Sim sim(fd, [&](std::uint64_t /*n*/, TimeNs now_ns) {
       if (first_burst_ns < 0) first_burst_ns = now_ns;
@@ -99,7 +98,8 @@ int main(int argc, char** argv) {
       const auto it = std::upper_bound(rec.imu.begin(), rec.imu.end(), t_rec,
                                        [](TimeNs t, const ImuSample& s) { return t < s.t_ns; });
       const ImuSample& s = *(it == rec.imu.begin() ? it : it - 1);
-      unit_sel = sim_ptr->regs[drivers::bno055::reg_addr(drivers::bno055::Reg::kUnitSel)];
+      const std::uint8_t unit_sel =
+          sim_ptr->regs[drivers::bno055::reg_addr(drivers::bno055::Reg::kUnitSel)];
       const bool accel_mg = (unit_sel & 0x01) != 0;
       const bool gyro_rps = (unit_sel & 0x02) != 0;
       drivers::bno055::RawBurst r;

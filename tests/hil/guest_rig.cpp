@@ -208,7 +208,6 @@ class Output {
     maps_.clear();
     if (fd_ >= 0) ::close(fd_);
     fd_ = -1;
-    streaming_ = false;
   }
 
   /// Fills buffer `index` with `image` and queues it; false when the device went away.
@@ -229,8 +228,7 @@ class Output {
   }
   bool stream_on() {
     int type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
-    streaming_ = xioctl(fd_, VIDIOC_STREAMON, &type) == 0;
-    return streaming_;
+    return xioctl(fd_, VIDIOC_STREAMON, &type) == 0;
   }
   /// A buffer vivid has finished showing, or -1 (none yet: EAGAIN; gone: lost set).
   int dequeue() {
@@ -259,7 +257,6 @@ class Output {
   std::string path_;
   int fd_ = -1;
   int stride_ = kWidth;
-  bool streaming_ = false;
   std::vector<Map> maps_;
 };
 
