@@ -118,5 +118,20 @@ TEST(MotionPrior, AFastTurnFarFromTheOriginKeepsThePredictedCentreOnThePath) {
   EXPECT_GT((centre(old) - centre(T2)).norm(), 1.5);
 }
 
+TEST(MotionPrior, TheGyrosTrustShrinksWithTheTimeSinceTheLastTrackedFrame) {
+  // A residual bias turns the integrated rotation in proportion to the interval: a tracker that
+  // skips frames (a slow board, TCG) must trust the gyro less for the longer span, or the pose
+  // follows the bias instead of the map.
+  dsp::TrackerConfig config;
+  config.gyro_rotation_sigma_deg = 0.01;
+  config.gyro_sigma_interval_s = 0.05;
+  EXPECT_DOUBLE_EQ(dsp::gyro_prior_sigma_deg(config, 0.0), 0.01);    // first frame
+  EXPECT_DOUBLE_EQ(dsp::gyro_prior_sigma_deg(config, 0.033), 0.01);  // 30 Hz: as configured
+  EXPECT_DOUBLE_EQ(dsp::gyro_prior_sigma_deg(config, 0.05), 0.01);
+  EXPECT_NEAR(dsp::gyro_prior_sigma_deg(config, 0.3), 0.06, 1e-12);  // six frames' span
+  config.gyro_rotation_sigma_deg = 0.0;                              // the gyro only seeds
+  EXPECT_DOUBLE_EQ(dsp::gyro_prior_sigma_deg(config, 0.3), 0.0);
+}
+
 }  // namespace
 }  // namespace wallar

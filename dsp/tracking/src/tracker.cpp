@@ -41,6 +41,14 @@ void KeyframeMessage::copy_from(const KeyframeMessage& other) {
   for (const PointRef& point : other.culled) culled.push_back(point);
 }
 
+double gyro_prior_sigma_deg(const TrackerConfig& config, double dt_s) {
+  if (config.gyro_rotation_sigma_deg <= 0.0) return 0.0;
+  if (config.gyro_sigma_interval_s <= 0.0 || dt_s <= config.gyro_sigma_interval_s) {
+    return config.gyro_rotation_sigma_deg;
+  }
+  return config.gyro_rotation_sigma_deg * dt_s / config.gyro_sigma_interval_s;
+}
+
 SE3d predict_camera_pose(const SE3d& T_cw_last, const SE3d& velocity, const RotationPrior& gyro) {
   const Eigen::Matrix3d& R_last = T_cw_last.linear();
   const Eigen::Vector3d c_last = -R_last.transpose() * T_cw_last.translation();
@@ -144,6 +152,7 @@ struct Tracker::Impl {
   double turn_rate_deg_s = 0.0;       // this frame's
   TimeNs last_t_ns = 0;               // the last frame's time
   Eigen::Matrix3d gyro_R_cw = Eigen::Matrix3d::Identity();
+  double gyro_sigma_deg = 0.0;  // this frame's trust in gyro_R_cw (gyro_prior_sigma_deg)
 
   std::int64_t now() const { return clock != nullptr ? clock() : 0; }
   KeyframeRecord* keyframe_by_id(std::int32_t id) {
@@ -474,9 +483,9 @@ int Tracker::Impl::add_stereo_points(bool& map_full) {
 PoseResult Tracker::Impl::solve(const SE3d& prior, bool ransac) {
   PoseParams params = config.pose;
   if (!ransac) params.ransac_iterations = 0;
-  if (gyro_prior_valid && config.gyro_rotation_sigma_deg > 0.0) {
+  if (gyro_prior_valid && gyro_sigma_deg > 0.0) {
     // Against observations of observation_sigma_px noise (the pixel terms count 1/sigma^2).
-    const double sigma_rad = config.gyro_rotation_sigma_deg * M_PI / 180.0;
+    const double sigma_rad = gyro_sigma_deg * M_PI / 180.0;
     params.rotation_prior_weight =
         observation_sigma_px * observation_sigma_px / (sigma_rad * sigma_rad);
     params.R_prior_cw = gyro_R_cw;
@@ -941,6 +950,7 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
         1.0 + m.config.blur_sigma_px_per_deg_s *
                   std::max(0.0, m.turn_rate_deg_s - m.config.keyframe_max_turn_deg_s);
     m.gyro_R_cw = prior.linear();
+    m.gyro_sigma_deg = gyro_prior_sigma_deg(m.config, dt_s);
     bool ok = false;
     if (m.state == TrackingState::kTracking) {
       m.stage1(prior, result);

@@ -106,9 +106,14 @@ struct TrackerConfig {
   std::uint32_t cull_after_visible = 20;
   double cull_found_ratio = 0.25;
   double depth_sigma_px = 0.5;  //!< disparity noise for a new point's depth uncertainty
-  /// How far the gyro's rotation since the last frame may be trusted (1 sigma) [deg]: the pose
-  /// keeps the predicted rotation within about this (0: the gyro only seeds the search).
+  /// How far the gyro's rotation since the last frame may be trusted (1 sigma) [deg] over
+  /// gyro_sigma_interval_s: the pose keeps the predicted rotation within about this (0: the gyro
+  /// only seeds the search). Over a longer interval (frames dropped, a slower camera) the sigma
+  /// grows in proportion, as a residual bias turns the integrated rotation
+  /// (gyro_prior_sigma_deg): a fixed per-frame sigma lets a tracker that skips frames follow the
+  /// gyro's residual bias instead of the map.
   double gyro_rotation_sigma_deg = 0.01;
+  double gyro_sigma_interval_s = 0.05;
   DetectorParams detector{.bucket_px = 32};
   KltParams klt;
   StereoMatchParams stereo;
@@ -247,6 +252,11 @@ struct RotationPrior {
   /// a few deg/s would turn a still camera).
   bool bias_corrected = false;
 };
+
+/// The 1-sigma trust [deg] of the gyro's rotation over `dt_s` since the last tracked frame:
+/// config.gyro_rotation_sigma_deg up to config.gyro_sigma_interval_s, growing in proportion
+/// beyond it (0 when the gyro only seeds the search).
+double gyro_prior_sigma_deg(const TrackerConfig& config, double dt_s);
 
 /// The predicted pose (T_cam_world) of the next frame from the last one, `T_cw_last`, and the
 /// last frame-to-frame motion `velocity` (T_cam(last)_cam(before)): the camera centre moves on
