@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file peers_none.cpp
-/// @brief Builds without PCL and Open3D (the device build): the peers report their absence.
+/// @brief Builds without PCL and Open3D (device builds, and the unit tests, which need neither):
+/// the peers report their absence.
 #include <stdexcept>
 
 #include "wallar/eval/peers.hpp"
