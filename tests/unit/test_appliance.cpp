@@ -7,6 +7,7 @@
 /// and a 10-minute soak with flat memory.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -118,6 +119,10 @@ TEST(ApplianceHil, ATrackerSlowerThanTheCameraKeepsItsHeartbeat) {
   // Tracking flat out for 3.5 s: with SCHED_FIFO this starved the real-time replay test.
   o.replay_plan = hil::replay_plan(0, {});  // until stopped
   o.max_duration_ns = 3500 * kNsPerMs;      // over the 2 s that reads as a hang
+  // At least 20 ms a frame, so the tracker is slower than the replay on any machine: a fast
+  // tracker beside a replay starved of CPU by a parallel test kept up once (CI), and nothing
+  // was tested.
+  o.before_frame = [](TimeNs) { std::this_thread::sleep_for(std::chrono::milliseconds(20)); };
   const std::atomic<bool> stop{false};
   const ApplianceReport r = run_appliance(board, o, stop);
   EXPECT_GT(r.frames_overwritten, 0u) << "the tracker kept up: no backlog, nothing shown";
