@@ -472,7 +472,7 @@ TEST(TrackerEuroc, EverySixthFrameWithABiasedGyroStaysPut) {
   };
   const auto [shrinking_m, shrinking_deg] = drift_after(dsp::TrackerConfig{}.gyro_sigma_interval_s);
   const auto [fixed_m, fixed_deg] = drift_after(1.0);  // 0.3 s trusted like one 20 Hz frame
-  std::printf("every 6th frame, biased gyro: %.2f mm %.3f deg (per-frame sigma: %.2f mm %.3f deg)\n",
+  std::printf("every 6th frame, biased gyro: %.2f mm %.3f deg (fixed sigma: %.2f mm %.3f deg)\n",
               shrinking_m * 1e3, shrinking_deg, fixed_m * 1e3, fixed_deg);
   EXPECT_LT(shrinking_m, 0.005);  // measured 1.9 mm, 0.09 deg; without the gyro 0.2 mm, 0.06 deg
   EXPECT_LT(shrinking_deg, 0.15);
