@@ -313,6 +313,7 @@ int Icm20948Sim::rdwr(i2c_rdwr_ioctl_data& data) {
   for (std::uint32_t i = 0; i < data.nmsgs; ++i) {
     if (data.msgs[i].addr != address_) return finish(-ENXIO);  // nobody answers there
   }
+  if (log.read_len > max_read_bytes_) return finish(-EOPNOTSUPP);
   if (stuck_) return finish(-ETIMEDOUT);
   if (unplugged_) return finish(-ENXIO);
   if (nack_budget_ > 0) {

@@ -65,6 +65,9 @@ class Icm20948Sim final : public drivers::I2cAdapter {
   explicit Icm20948Sim(std::uint16_t address = 0x68, SimTruthFn truth = {});
 
   int rdwr(i2c_rdwr_ioctl_data& data) override;
+  [[nodiscard]] std::size_t max_read_bytes() const override { return max_read_bytes_; }
+  /// Reads longer than `bytes` fail with EOPNOTSUPP, as on an SMBus-only adapter.
+  void set_max_read_bytes(std::size_t bytes) { max_read_bytes_ = bytes; }
 
   /// Moves the simulated time to t_ns, making every sample due by then.
   void advance_to(TimeNs t_ns);
@@ -143,6 +146,7 @@ class Icm20948Sim final : public drivers::I2cAdapter {
   std::vector<std::array<std::int16_t, 3>> mag_log_;
   std::vector<SimSample> samples_;
   std::vector<SimTraffic> traffic_;
+  std::size_t max_read_bytes_ = drivers::kI2cNoReadLimit;
   bool logging_ = true;
   std::deque<Fault> faults_;
   bool stuck_ = false;

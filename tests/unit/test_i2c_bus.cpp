@@ -4,6 +4,8 @@
 /// errors name chip and line; timestamp conversion and debouncing as pure functions.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <vector>
 
 #include "wallar/core/error.hpp"
@@ -168,6 +170,138 @@ TEST(I2cBus, OpenFailureNamesTheDevice) {
   }
   // A device node that is not an I2C adapter.
   EXPECT_THROW(drivers::LinuxI2cAdapter("/dev/null"), DeviceError);
+}
+
+// An SMBus-only adapter (i2c-stub's model): 256 byte registers per chip at `address`, a
+// register pointer for send/receive byte; every SMBus transaction it was asked for is kept.
+class SmbusChip final : public drivers::SmbusPort, public drivers::I2cAdapter {
+ public:
+  explicit SmbusChip(unsigned long funcs) : funcs_(funcs) {}  // NOLINT(google-runtime-int)
+  int smbus(std::uint16_t address, i2c_smbus_ioctl_data& call) override {
+    calls.push_back({call.read_write, call.command, call.size});
+    if (address != kAddress) return -ENODEV;  // what i2c-stub says for an absent chip
+    if (call.read_write == I2C_SMBUS_WRITE) {
+      switch (call.size) {
+        case I2C_SMBUS_BYTE:
+          pointer = call.command;
+          return 0;
+        case I2C_SMBUS_BYTE_DATA:
+          regs[call.command] = call.data->byte;
+          return 0;
+        case I2C_SMBUS_I2C_BLOCK_DATA:
+          for (int i = 0; i < call.data->block[0]; ++i) {
+            regs[(call.command + i) & 0xFF] = call.data->block[1 + i];
+          }
+          return 0;
+        default:
+          return -EOPNOTSUPP;
+      }
+    }
+    switch (call.size) {
+      case I2C_SMBUS_BYTE:
+        call.data->byte = regs[pointer++ & 0xFF];
+        return 0;
+      case I2C_SMBUS_BYTE_DATA:
+        call.data->byte = regs[call.command];
+        return 0;
+      case I2C_SMBUS_I2C_BLOCK_DATA:
+        for (int i = 0; i < call.data->block[0] && i < truncate_block_to; ++i) {
+          call.data->block[1 + i] = regs[(call.command + i) & 0xFF];
+        }
+        call.data->block[0] =
+            static_cast<std::uint8_t>(std::min<int>(call.data->block[0], truncate_block_to));
+        return 0;
+      default:
+        return -EOPNOTSUPP;
+    }
+  }
+  int rdwr(i2c_rdwr_ioctl_data& data) override {
+    return drivers::rdwr_over_smbus(data, funcs_, *this);
+  }
+  struct Call {
+    int read_write;
+    int command;
+    std::uint32_t size;
+    bool operator==(const Call&) const = default;
+  };
+  static constexpr std::uint16_t kAddress = 0x68;
+  std::array<std::uint8_t, 256> regs{};
+  std::uint8_t pointer = 0;
+  int truncate_block_to = 1000;
+  std::vector<Call> calls;
+
+ private:
+  unsigned long funcs_;  // NOLINT(google-runtime-int)
+};
+
+constexpr unsigned long kStubFuncs =  // NOLINT(google-runtime-int): i2c-stub's default
+    I2C_FUNC_SMBUS_QUICK | I2C_FUNC_SMBUS_BYTE | I2C_FUNC_SMBUS_BYTE_DATA |
+    I2C_FUNC_SMBUS_WORD_DATA | I2C_FUNC_SMBUS_I2C_BLOCK;
+
+TEST(I2cOverSmbus, EachRegisterTransferIsTheSmbusTransactionOfItsShape) {
+  SmbusChip chip(kStubFuncs);
+  I2cBus bus(chip, SmbusChip::kAddress);
+  using C = SmbusChip::Call;
+  // write byte data, then read byte data
+  ASSERT_EQ(bus.transfer(std::array<std::uint8_t, 2>{0x06, 0x41}, {}), 0);
+  std::array<std::uint8_t, 1> one{};
+  ASSERT_EQ(bus.transfer(std::array<std::uint8_t, 1>{0x06}, one), 0);
+  EXPECT_EQ(one[0], 0x41);
+  // a 32-byte register write and read (I2C block), bytes in order
+  std::array<std::uint8_t, 33> block_write{};
+  block_write[0] = 0x20;
+  for (int i = 1; i < 33; ++i) block_write[i] = static_cast<std::uint8_t>(0x80 + i);
+  ASSERT_EQ(bus.transfer(block_write, {}), 0);
+  std::array<std::uint8_t, 32> block{};
+  ASSERT_EQ(bus.transfer(std::array<std::uint8_t, 1>{0x20}, block), 0);
+  for (int i = 0; i < 32; ++i) EXPECT_EQ(block[i], 0x81 + i) << i;
+  // send byte sets the pointer, receive byte reads there
+  ASSERT_EQ(bus.transfer(std::array<std::uint8_t, 1>{0x06}, {}), 0);
+  ASSERT_EQ(bus.transfer({}, one), 0);
+  EXPECT_EQ(one[0], 0x41);
+  const std::vector<C> want{{I2C_SMBUS_WRITE, 0x06, I2C_SMBUS_BYTE_DATA},
+                            {I2C_SMBUS_READ, 0x06, I2C_SMBUS_BYTE_DATA},
+                            {I2C_SMBUS_WRITE, 0x20, I2C_SMBUS_I2C_BLOCK_DATA},
+                            {I2C_SMBUS_READ, 0x20, I2C_SMBUS_I2C_BLOCK_DATA},
+                            {I2C_SMBUS_WRITE, 0x06, I2C_SMBUS_BYTE},
+                            {I2C_SMBUS_READ, 0, I2C_SMBUS_BYTE}};
+  EXPECT_EQ(chip.calls, want);
+  EXPECT_EQ(bus.counters().failures, 0u);
+}
+
+TEST(I2cOverSmbus, WhatSmbusCannotCarryIsRefusedNotSplit) {
+  SmbusChip chip(kStubFuncs);
+  I2cBus bus(chip, SmbusChip::kAddress);
+  std::array<std::uint8_t, 33> too_long{};
+  // 33 bytes from a register: two block reads would mean something else to a FIFO register
+  // than to a run of registers, so the adapter does not guess.
+  EXPECT_EQ(bus.transfer(std::array<std::uint8_t, 1>{0x00}, too_long), EOPNOTSUPP);
+  std::array<std::uint8_t, 34> long_write{};
+  EXPECT_EQ(bus.transfer(long_write, {}), EOPNOTSUPP);
+  std::array<std::uint8_t, 2> two{};
+  EXPECT_EQ(bus.transfer(std::array<std::uint8_t, 2>{0x00, 0x01}, two), EOPNOTSUPP);  // 2-byte reg
+  EXPECT_EQ(bus.transfer({}, two), EOPNOTSUPP);  // a bare 2-byte read
+  EXPECT_TRUE(chip.calls.empty()) << "nothing half-done on the bus";
+  // Without I2C-block support, a multi-byte register read is refused; byte data still works.
+  SmbusChip byte_only(I2C_FUNC_SMBUS_BYTE_DATA);
+  I2cBus byte_bus(byte_only, SmbusChip::kAddress);
+  std::array<std::uint8_t, 6> six{};
+  EXPECT_EQ(byte_bus.transfer(std::array<std::uint8_t, 1>{0x2D}, six), EOPNOTSUPP);
+  std::array<std::uint8_t, 1> one{};
+  EXPECT_EQ(byte_bus.transfer(std::array<std::uint8_t, 1>{0x2D}, one), 0);
+  EXPECT_EQ(byte_bus.transfer(std::array<std::uint8_t, 1>{0x2D}, {}), EOPNOTSUPP);  // no send byte
+}
+
+TEST(I2cOverSmbus, AShortBlockAndAnAbsentChipAreErrors) {
+  SmbusChip chip(kStubFuncs);
+  I2cBus bus(chip, SmbusChip::kAddress);
+  chip.truncate_block_to = 5;
+  std::array<std::uint8_t, 12> rx{};
+  EXPECT_EQ(bus.transfer(std::array<std::uint8_t, 1>{0x2D}, rx), drivers::kI2cShortTransfer);
+  I2cBus absent(chip, 0x69);
+  std::array<std::uint8_t, 1> one{};
+  EXPECT_EQ(absent.transfer(std::array<std::uint8_t, 1>{0x00}, one), ENODEV);
+  EXPECT_EQ(absent.counters().retries, 0u);
 }
 
 TEST(Gpio, OpenFailureNamesChipAndLine) {

@@ -262,6 +262,31 @@ TEST(Icm20948Driver, BatchedReadsBackDateOlderRecordsByThePeriod) {
   expect_stream_matches_chip(rig, 1000);
 }
 
+TEST(Icm20948Driver, OnAnSmbusOnlyBusFifoBurstsAreSplitIntoWholeRecords) {
+  Icm20948::Config config;
+  config.fifo_read_every = 5;  // 60-byte bursts, more than an SMBus block's 32
+  ImuRig rig(config, motion);
+  rig.sim.set_max_read_bytes(drivers::kSmbusBlockMax);
+  rig.run_until(1000 * kNsPerMs);
+  ASSERT_EQ(rig.driver.state(), ImuDriverState::kRun);
+  const ImuCounters& c = rig.driver.counters();
+  EXPECT_EQ(c.bad_transfer, 0u);
+  EXPECT_EQ(c.resync, 0u);
+  EXPECT_EQ(c.dropped_samples, 0u);
+  EXPECT_GT(c.samples, 1000u);
+  expect_stream_matches_chip(rig, 1000);
+  int fifo_reads = 0;
+  for (const auto& t : rig.sim.traffic()) {
+    if (t.bank == 0 && t.reg == static_cast<std::uint8_t>(icm::Reg0::FIFO_R_W) && t.read_len) {
+      ++fifo_reads;
+      EXPECT_LE(t.read_len, 24);  // two whole records
+      EXPECT_EQ(t.read_len % 12, 0);
+      EXPECT_EQ(t.result, 2);
+    }
+  }
+  EXPECT_GT(fifo_reads, 2 * 1000 / 5);
+}
+
 TEST(Icm20948Driver, SlowOscillatorIsFollowedByTheDeviceClock) {
   ImuRig rig(Icm20948::Config{}, motion);
   rig.sim.set_rate_error(0.01);  // the chip's oscillator runs 1 % slow

@@ -502,7 +502,17 @@ TimeNs Icm20948::read_fifo(TimeNs now_ns, bool edge) {
   if (n == 0) return now_ns;  // a partial record stays in the FIFO until it is whole
   const std::span<std::uint8_t> bytes(fifo_buf_.data(), n * sizeof(FifoRecord));
   const std::array<std::uint8_t, 1> fifo_reg{u8(Reg0::FIFO_R_W)};
-  if (!select_bank(Bank::k0) || !transfer(fifo_reg, bytes)) {
+  // FIFO_R_W hands out the next byte on every read, so a burst the bus cannot carry in one
+  // transfer (an SMBus-only adapter: 32 bytes) goes as several, each of whole records.
+  const std::size_t max_read = device_.max_read_bytes();
+  const std::size_t chunk = max_read >= sizeof(FifoRecord)
+                                ? max_read / sizeof(FifoRecord) * sizeof(FifoRecord)
+                                : std::max<std::size_t>(max_read, 1);
+  bool read_ok = select_bank(Bank::k0);
+  for (std::size_t at = 0; read_ok && at < bytes.size(); at += chunk) {
+    read_ok = transfer(fifo_reg, bytes.subspan(at, std::min(chunk, bytes.size() - at)));
+  }
+  if (!read_ok) {
     // Some bytes may have left the FIFO: record boundaries are lost, start it over.
     flush_fifo(now_ns, edge, false);
     return now_ns;

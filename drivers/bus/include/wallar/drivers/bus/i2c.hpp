@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file i2c.hpp
-/// @brief One narrow I2C interface, its Linux implementation over /dev/i2c-N (I2C_RDWR) and the
-/// seam below it that a register-level simulator implements in tests.
+/// @brief One narrow I2C interface, its Linux implementation over /dev/i2c-N (I2C_RDWR, or SMBus
+/// transactions on an adapter that has no plain I2C) and the seam below it that a
+/// register-level simulator implements in tests.
 ///
 /// Layers, top to bottom:
 ///   - I2cDevice: one device at one address; transfer(tx, rx) is a write followed by a read in
@@ -11,6 +12,11 @@
 ///     transfers, counts, and calls a bus-recovery hook after persistent failure.
 ///   - I2cAdapter: the seam. LinuxI2cAdapter calls ::ioctl(fd, I2C_RDWR, &data); the test
 ///     simulator receives the very same struct and answers it from its register file.
+///   - On an SMBus-only adapter (no I2C_FUNC_I2C: a PC's SMBus controller, the kernel's
+///     i2c-stub) LinuxI2cAdapter carries each request as the one SMBus transaction of the same
+///     shape (rdwr_over_smbus): a register read of up to 32 bytes, a register write of up to
+///     32 data bytes, a single byte. Other shapes (a read of 33 bytes or more, a write-only
+///     message pair) fail with EOPNOTSUPP: SMBus cannot carry them.
 ///
 /// Error codes the caller sees (positive errno):
 ///   - ENXIO / EREMOTEIO: the device did not acknowledge (absent, unplugged, in reset). Not
@@ -31,6 +37,7 @@
 #include <linux/i2c.h>
 
 #include <cerrno>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <span>
@@ -41,6 +48,9 @@ namespace wallar::drivers {
 
 /// The errno an I2cBus returns for a short transfer (fewer messages or bytes than asked).
 inline constexpr int kI2cShortTransfer = EPROTO;
+
+/// max_read_bytes() of a bus with no limit of its own below the I2C_RDWR message's.
+inline constexpr std::size_t kI2cNoReadLimit = 65535;
 
 /// True for the errno values that mean "the device did not acknowledge".
 constexpr bool is_i2c_nack(int err) { return err == ENXIO || err == EREMOTEIO; }
@@ -53,6 +63,9 @@ class I2cDevice {
   /// transaction with a repeated start between the two. Returns 0 or a positive errno; on
   /// error the content of rx is unspecified.
   virtual int transfer(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx) = 0;
+  /// The most bytes one transfer() can read: an SMBus-only adapter carries 32 (an I2C block
+  /// read), and a longer read fails with EOPNOTSUPP; a driver splits its bursts to fit.
+  [[nodiscard]] virtual std::size_t max_read_bytes() const { return kI2cNoReadLimit; }
 };
 
 /// The seam below I2cBus: executes one I2C_RDWR request. Returns the number of messages the
@@ -61,24 +74,62 @@ class I2cAdapter {
  public:
   virtual ~I2cAdapter() = default;
   virtual int rdwr(i2c_rdwr_ioctl_data& data) = 0;
+  /// The longest read message rdwr() carries (see I2cDevice::max_read_bytes).
+  [[nodiscard]] virtual std::size_t max_read_bytes() const { return kI2cNoReadLimit; }
 };
 
-/// A Linux I2C adapter, /dev/i2c-N. Opened O_RDWR | O_CLOEXEC at construction.
-class LinuxI2cAdapter final : public I2cAdapter {
+/// One SMBus transaction (what the I2C_SMBUS ioctl executes) for the device at `address`.
+/// Returns 0 or a negative errno.
+class SmbusPort {
+ public:
+  virtual ~SmbusPort() = default;
+  virtual int smbus(std::uint16_t address, i2c_smbus_ioctl_data& call) = 0;
+};
+
+/// The largest register read or write (data bytes) an SMBus I2C-block transaction carries.
+inline constexpr std::size_t kSmbusBlockMax = I2C_SMBUS_BLOCK_MAX;
+
+/// Carries one I2C_RDWR request (one write, one read, or a write then a read, all to the same
+/// address) as one SMBus transaction on an adapter with functionality `funcs` (I2C_FUNCS):
+///   write 1 byte             -> send byte          (I2C_FUNC_SMBUS_WRITE_BYTE)
+///   write 2 bytes            -> write byte data    (I2C_FUNC_SMBUS_WRITE_BYTE_DATA)
+///   write 3..33 bytes        -> write I2C block    (I2C_FUNC_SMBUS_WRITE_I2C_BLOCK)
+///   read 1 byte              -> receive byte       (I2C_FUNC_SMBUS_READ_BYTE)
+///   write 1, read 1          -> read byte data     (I2C_FUNC_SMBUS_READ_BYTE_DATA)
+///   write 1, read 2..32      -> read I2C block     (I2C_FUNC_SMBUS_READ_I2C_BLOCK)
+/// The first byte written is the SMBus command (the register). Returns what I2C_RDWR would:
+/// the number of messages done, or a negative errno; -EOPNOTSUPP for a shape the adapter's
+/// SMBus functions cannot carry. Allocates nothing.
+int rdwr_over_smbus(i2c_rdwr_ioctl_data& data, unsigned long funcs,  // NOLINT(google-runtime-int)
+                    SmbusPort& port);
+
+/// A Linux I2C adapter, /dev/i2c-N. Opened O_RDWR | O_CLOEXEC at construction. Plain I2C
+/// (I2C_RDWR) where the adapter has it, otherwise SMBus transactions (rdwr_over_smbus).
+class LinuxI2cAdapter final : public I2cAdapter, private SmbusPort {
  public:
   /// Throws wallar::DeviceError "PATH: cannot open I2C adapter: STRERROR" (one line) when the
-  /// device node cannot be opened, or does not support plain I2C transfers.
+  /// device node cannot be opened, or "PATH: neither plain-I2C nor SMBus register transfers
+  /// (I2C_FUNCS ...)" when the adapter can carry neither.
   explicit LinuxI2cAdapter(std::string path);
   ~LinuxI2cAdapter() override;
   LinuxI2cAdapter(const LinuxI2cAdapter&) = delete;
   LinuxI2cAdapter& operator=(const LinuxI2cAdapter&) = delete;
 
   int rdwr(i2c_rdwr_ioctl_data& data) override;
+  /// kSmbusBlockMax in SMBus mode (1 without I2C-block reads), else kI2cNoReadLimit.
+  [[nodiscard]] std::size_t max_read_bytes() const override;
   [[nodiscard]] const std::string& path() const { return path_; }
+  /// True when the adapter has no plain I2C and requests go as SMBus transactions.
+  [[nodiscard]] bool smbus_only() const { return smbus_only_; }
 
  private:
+  int smbus(std::uint16_t address, i2c_smbus_ioctl_data& call) override;
+
   std::string path_;
   int fd_ = -1;
+  unsigned long funcs_ = 0;  // NOLINT(google-runtime-int): I2C_FUNCS's own type
+  bool smbus_only_ = false;
+  int slave_address_ = -1;  //!< the address I2C_SLAVE last set (SMBus mode)
 };
 
 /// Per-bus counters (the driver keeps its own, per error class, on top).
@@ -111,6 +162,8 @@ class I2cBus final : public I2cDevice {
   I2cBus(I2cAdapter& adapter, std::uint16_t address) : I2cBus(adapter, address, Options{}) {}
 
   int transfer(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx) override;
+  /// The adapter's.
+  [[nodiscard]] std::size_t max_read_bytes() const override;
 
   [[nodiscard]] const I2cBusCounters& counters() const { return counters_; }
   [[nodiscard]] std::uint16_t address() const { return address_; }

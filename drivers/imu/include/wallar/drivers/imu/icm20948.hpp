@@ -12,7 +12,9 @@
 ///                  probe the AK09916 (WIA2 = 0x09) and set it to 100 Hz continuous through the
 ///                  auxiliary master's one-shot slave 4; then empty the FIFO.
 ///   RUN            on data-ready edges (every `fifo_read_every`-th) or on the timeout: read
-///                  INT_STATUS_2 and FIFO_COUNT, read the whole records, push them; read the
+///                  INT_STATUS_2 and FIFO_COUNT, read the whole records (in one transfer,
+///                  or in several of whole records where the bus carries less, as an
+///                  SMBus-only adapter's 32 bytes: max_read_bytes()), push them; read the
 ///                  magnetometer's copy in EXT_SLV_SENS_DATA; re-check one configuration
 ///                  register per read (a mismatch counts config_mismatch and resets).
 /// Every failed transfer counts in its class (nack, short_transfer, bad_transfer) and raises a
