@@ -163,13 +163,17 @@ int run_live_record(const RecordArgs& args, const firmware::BoardConfig& board) 
                     {"usb_resets", c.usb_resets},
                     {"counters", drivers::format_counters(c)}});
   }
-  const nlohmann::json report{{"out", args.out},
-                              {"imu_rows", rc.imu_written},
-                              {"cam_rows", rc.frames_written},
-                              {"pairs", cap.pairing().pairs},
-                              {"unpaired", {cap.pairing().unpaired[0], cap.pairing().unpaired[1]}},
-                              {"cameras", cams},
-                              {"recorder", recorder_json(rc, recorder_options)}};
+  nlohmann::json report{{"out", args.out},
+                        {"imu_rows", rc.imu_written},
+                        {"cam_rows", rc.frames_written},
+                        {"pairs", cap.pairing().pairs},
+                        {"unpaired", {cap.pairing().unpaired[0], cap.pairing().unpaired[1]}},
+                        {"cameras", cams},
+                        {"recorder", recorder_json(rc, recorder_options)}};
+  // The IMU driver's counters: what the bus delivered, against the rows that were written.
+  const std::string imu_counters = imu ? drivers::format_counters(imu->driver().counters()) : "";
+  if (imu)
+    report["imu"] = {{"samples", imu->driver().counters().samples}, {"counters", imu_counters}};
   if (args.json) {
     std::cout << report.dump(2) << "\n";
   } else {
@@ -179,6 +183,7 @@ int run_live_record(const RecordArgs& args, const firmware::BoardConfig& board) 
     for (int i = 0; i < 2; ++i)
       std::cout << "  " << cap.camera(i).config().name << ": "
                 << drivers::format_counters(cap.camera(i).counters()) << "\n";
+    if (imu) std::cout << "  imu: " << imu_counters << "\n";
     std::cout << recorder_text(rc, recorder_options);
   }
   return recorder_exit_code(rc);
