@@ -171,9 +171,12 @@ int run_live_record(const RecordArgs& args, const firmware::BoardConfig& board) 
                         {"cameras", cams},
                         {"recorder", recorder_json(rc, recorder_options)}};
   // The IMU driver's counters: what the bus delivered, against the rows that were written.
-  const std::string imu_counters = imu ? drivers::format_counters(imu->driver().counters()) : "";
-  if (imu)
-    report["imu"] = {{"samples", imu->driver().counters().samples}, {"counters", imu_counters}};
+  std::string imu_counters;
+  if (imu) {
+    const drivers::ImuCounters& c = imu->driver().counters();
+    imu_counters = drivers::format_counters(c);
+    report["imu"] = {{"samples", c.samples}, {"counters", imu_counters}};
+  }
   if (args.json) {
     std::cout << report.dump(2) << "\n";
   } else {
