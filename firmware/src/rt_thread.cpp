@@ -343,6 +343,32 @@ std::exception_ptr RtThread::exception() const {
   return failed() ? state_->exception : std::exception_ptr();
 }
 
+ScopedThreadPriority::ScopedThreadPriority(int priority) {
+  if (priority <= 0) return;
+  sched_param old{};
+  if (pthread_getschedparam(pthread_self(), &old_policy_, &old) != 0) return;
+  old_priority_ = old.sched_priority;
+  sched_param param{};
+  param.sched_priority = priority;
+  const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
+  if (rc == 0) {
+    changed_ = true;
+    placement_.fifo = true;
+    placement_.priority = priority;
+    return;
+  }
+  placement_.fallback = "SCHED_FIFO " + std::to_string(priority) +
+                        (rc == EPERM ? " not permitted (" : " rejected (") + errno_name(rc) +
+                        "): running SCHED_OTHER";
+}
+
+ScopedThreadPriority::~ScopedThreadPriority() {
+  if (!changed_) return;
+  sched_param old{};
+  old.sched_priority = old_priority_;
+  pthread_setschedparam(pthread_self(), old_policy_, &old);
+}
+
 MemoryLock lock_memory() {
   MemoryLock result;
   if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {

@@ -187,6 +187,20 @@ run_signals)
   kill -TERM $pid; wait $pid; echo $? >"$tmp/rc"
   expect_rc 0
   expect_out "wall model"
+  # A stop while the tracking thread hangs (the test fault): the process does not wait for it
+  # (a service manager would SIGKILL it after its stop timeout): exit 1 within seconds, saying
+  # why.
+  ${WALLAR_EMULATOR:-} "$bin" run --board "$tmp/loop.yaml" --out "$tmp/o3" --no-view \
+    --fault tracking-hang@0.5+600 >"$tmp/out" 2>"$tmp/err" &
+  pid=$!
+  for _ in $(seq 1 600); do grep -q "tracking thread stalled" "$tmp/err" && break; sleep 0.1; done
+  grep -q "tracking thread stalled" "$tmp/err" || fail "no stall reported: $(cat "$tmp/err")"
+  t0_ms=$(date +%s%3N)
+  kill -TERM $pid; wait $pid; echo $? >"$tmp/rc"
+  stop_ms=$(($(date +%s%3N) - t0_ms))
+  expect_rc 1
+  expect_err "the tracking thread is hung and did not stop within 2 s"
+  [ "$stop_ms" -lt 10000 ] || fail "the stop of a hung appliance took $stop_ms ms"
   ;;
 walls)
   pcd="$src/tests/data/pcl/sac_plane_test.pcd"

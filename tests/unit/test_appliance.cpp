@@ -91,6 +91,9 @@ TEST(ApplianceHil, RealTimeReplayMissesNoDeadlineAndDropsNoImuSample) {
   ASSERT_NE(tracking, nullptr);
   const ThreadRow* supervisor = thread_named(r, "supervisor");
   ASSERT_NE(supervisor, nullptr);
+  // The supervisor's loop above the workers, as the tracking thread gets its own priority (or
+  // both fell back together: no permission).
+  EXPECT_EQ(supervisor->policy, tracking->policy == "OTHER" ? "OTHER" : "FIFO 75");
   const std::uint64_t misses = tracking->misses + supervisor->misses + r.frames_overwritten;
   if (kSanitized || test::short_tests()) {
     if (misses != 0)

@@ -278,6 +278,37 @@ TEST(RtThread, FifoPriorityIsAppliedOrExplained) {
   EXPECT_GE(p.stack_bytes, 256u * 1024u);
 }
 
+// The supervisor's loop on the main thread: SCHED_FIFO while the object lives, the thread's own
+// policy again after it (on a thread of its own here, so the test runner keeps its policy).
+TEST(ScopedThreadPriority, RaisesTheCallingThreadForItsScopeOrExplains) {
+  int during = -1, during_priority = -1, after = -1;
+  firmware::ThreadPlacement p;
+  std::thread([&] {
+    {
+      const firmware::ScopedThreadPriority scoped(30);
+      p = scoped.placement();
+      sched_param param{};
+      pthread_getschedparam(pthread_self(), &during, &param);
+      during_priority = param.sched_priority;
+    }
+    sched_param param{};
+    pthread_getschedparam(pthread_self(), &after, &param);
+  }).join();
+  EXPECT_NE(p.fifo, !p.fallback.empty()) << p.fallback;
+  if (p.fifo) {
+    EXPECT_EQ(during, SCHED_FIFO);
+    EXPECT_EQ(during_priority, 30);
+  } else {
+    EXPECT_NE(during, SCHED_FIFO);
+    EXPECT_NE(p.fallback.find("SCHED_FIFO 30"), std::string::npos) << p.fallback;
+  }
+  EXPECT_EQ(after, SCHED_OTHER);
+  // Priority 0 leaves the thread as it is and says nothing.
+  const firmware::ScopedThreadPriority none(0);
+  EXPECT_FALSE(none.placement().fifo);
+  EXPECT_TRUE(none.placement().fallback.empty());
+}
+
 TEST(RtThread, PinsToAnOnlineCpuAndSkipsAMissingOne) {
   int cpu_seen = -1;
   RtThread pinned(ThreadSpec{.name = "pin0", .cpu = 0}, [&] { cpu_seen = sched_getcpu(); });

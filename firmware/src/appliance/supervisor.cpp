@@ -3,7 +3,9 @@
 /// @brief run_appliance(): builds the modules and channels from the board, starts their
 /// threads from the table, supervises them, stops them in two phases and writes the report.
 #include <cstdio>
+#include <ctime>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 
 #include "wallar/core/error.hpp"
@@ -32,6 +34,17 @@ namespace wallar::firmware {
 namespace {
 
 void default_log(const std::string& line) { std::fprintf(stderr, "wallar: %s\n", line.c_str()); }
+
+// Waits up to `timeout_ns` for the thread's body to return; true when it did.
+bool wait_until_finished(const RtThread& thread, DurationNs timeout_ns) {
+  const TimeNs until = monotonic_now_ns() + timeout_ns;
+  while (!thread.finished()) {
+    if (monotonic_now_ns() >= until) return false;
+    const timespec ts{0, 5 * kNsPerMs};
+    nanosleep(&ts, nullptr);
+  }
+  return true;
+}
 
 ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& options_in,
                             const std::atomic<bool>& stop, std::atomic<bool>* stats_request,
@@ -227,6 +240,17 @@ ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& op
       }
     }
   }
+  // The supervisor's loop runs above the worker threads (thread table): on a board whose
+  // replay and tracking threads kept both CPUs busy (the emulator: PNG decoding and tracking
+  // at SCHED_FIFO), a SCHED_OTHER supervisor went seconds without running and missed its
+  // watchdog keep-alives while healthy. A wake-up costs microseconds; after the loop (the
+  // final adjustment, the report) the main thread is SCHED_OTHER again.
+  std::optional<ScopedThreadPriority> supervisor_priority;
+  if (realtime) {
+    supervisor_priority.emplace(thread_table_entry("supervisor").priority);
+    if (!supervisor_priority->placement().fallback.empty())
+      options.log("thread supervisor: " + supervisor_priority->placement().fallback);
+  }
   notifier.ready();
   notifier.status("running");
 
@@ -338,6 +362,8 @@ ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& op
     if (!stalled && notifier.watchdog_due(now)) notifier.watchdog(now);
   }
   tl_allocation_counter = nullptr;
+  const bool supervisor_fifo = supervisor_priority && supervisor_priority->placement().fifo;
+  supervisor_priority.reset();
   notifier.stopping();
 
   // Phase one: break the links. Producers stop producing, waits are released.
@@ -353,13 +379,23 @@ ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& op
   // A source that failed while the supervisor saw it finish: its error still counts.
   if (!source_error) source_error = source->error();
   report.devices = source->device_counters();
+  // A tracking thread the health check found hung gets as long as a healthy one takes for its
+  // last frame; then the process ends without it, as with a stuck source (before, a stop of a
+  // hung appliance waited for the service manager's SIGKILL: 20 s under systemd).
+  if (tracking_stalled && !wait_until_finished(tracking_thread, 2 * kNsPerS)) {
+    options.log(
+        "the tracking thread is hung and did not stop within 2 s: exiting without its outputs");
+    std::fflush(nullptr);
+    std::_Exit(1);
+  }
   tracking_thread.join();
   if (reconstruct_thread) reconstruct_thread->join();
   const DurationNs run_ns = monotonic_now_ns() - t_start;
   report.threads = live_rows(run_ns, true);
   ThreadRow sup;
   sup.name = "supervisor";
-  sup.policy = "OTHER";
+  sup.policy = supervisor_fifo ? "FIFO " + std::to_string(thread_table_entry("supervisor").priority)
+                               : std::string("OTHER");
   sup.wakeups = supervisor_wakeups;
   sup.misses = supervisor.misses();
   if (g_allocations_counted) sup.allocations = supervisor_allocs.load();

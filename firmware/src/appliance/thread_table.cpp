@@ -11,7 +11,9 @@ namespace wallar::firmware {
 namespace {
 
 // The renderer stays SCHED_OTHER: Mesa's llvmpipe starts worker threads that would inherit a
-// real-time policy and starve the rest on a small board.
+// real-time policy and starve the rest on a small board. The supervisor (the main thread, for
+// its loop only: ScopedThreadPriority) is above every worker but the IMU: it wakes at 10 Hz
+// for microseconds, and the watchdog's keep-alives must not wait for busy workers.
 constexpr std::size_t kMiB = 1024 * 1024;
 constexpr ThreadTableEntry kThreadTable[] = {
     {"imu", 80, -1, 1 * kMiB, "IMU driver: FIFO, time stamps"},
@@ -21,7 +23,7 @@ constexpr ThreadTableEntry kThreadTable[] = {
     {"mapping", 0, -1, 8 * kMiB, "key-frames, bundle adjustment"},
     {"reconstruct", 0, -1, 4 * kMiB, "walls, floor, ceiling"},
     {"render", 0, -1, 4 * kMiB, "headset view (EGL)"},
-    {"supervisor", 0, -1, 0, "health, stop, stats, watchdog (main thread)"},
+    {"supervisor", 75, -1, 0, "health, stop, stats, watchdog (main thread)"},
 };
 
 }  // namespace

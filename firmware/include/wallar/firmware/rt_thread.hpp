@@ -15,7 +15,7 @@
 /// spec(), placement(), native_handle(); cpu_time_ns(), finished(), failed() and error() may be
 /// called from any thread while the object is alive (not concurrently with a move or with
 /// destruction). lock_memory() is a plain function, best called once at start-up before the
-/// fixed-rate threads start.
+/// fixed-rate threads start. ScopedThreadPriority changes the calling thread only.
 #pragma once
 
 #include <pthread.h>
@@ -90,6 +90,27 @@ class RtThread {
   std::unique_ptr<State> state_;  // shared with the thread; outlives it (freed after join)
   pthread_t handle_{};
   bool joined_ = false;
+};
+
+/// The calling thread at SCHED_FIFO `priority` while the object lives (0: left as it is), its
+/// previous policy and priority back when it goes. Where the policy is refused the thread keeps
+/// its own, and placement().fallback says why in one line (as RtThread's). For a loop on a
+/// thread RtThread did not create: the appliance's supervisor on the main thread.
+/// Threading: constructed and destroyed on the thread it changes.
+class ScopedThreadPriority {
+ public:
+  explicit ScopedThreadPriority(int priority);
+  ~ScopedThreadPriority();
+  ScopedThreadPriority(const ScopedThreadPriority&) = delete;
+  ScopedThreadPriority& operator=(const ScopedThreadPriority&) = delete;
+
+  [[nodiscard]] const ThreadPlacement& placement() const { return placement_; }
+
+ private:
+  ThreadPlacement placement_;
+  int old_policy_ = 0;
+  int old_priority_ = 0;
+  bool changed_ = false;
 };
 
 struct MemoryLock {
