@@ -35,11 +35,11 @@ namespace {
 
 void default_log(const std::string& line) { std::fprintf(stderr, "wallar: %s\n", line.c_str()); }
 
-// Waits up to `timeout_ns` for the thread's body to return; true when it did.
-bool wait_until_finished(const RtThread& thread, DurationNs timeout_ns) {
-  const TimeNs until = monotonic_now_ns() + timeout_ns;
+// Waits for the tracking thread's body to return; false once its heartbeat has not moved for
+// `hung_ns` meanwhile (a working tracker moves it at every wake-up and every frame done).
+bool wait_for_tracking(const RtThread& thread, const TrackingThread& tracker, DurationNs hung_ns) {
   while (!thread.finished()) {
-    if (monotonic_now_ns() >= until) return false;
+    if (monotonic_now_ns() - tracker.heartbeat_ns() > hung_ns) return false;
     const timespec ts{0, 5 * kNsPerMs};
     nanosleep(&ts, nullptr);
   }
@@ -379,12 +379,14 @@ ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& op
   // A source that failed while the supervisor saw it finish: its error still counts.
   if (!source_error) source_error = source->error();
   report.devices = source->device_counters();
-  // A tracking thread the health check found hung gets as long as a healthy one takes for its
-  // last frame; then the process ends without it, as with a stuck source (before, a stop of a
-  // hung appliance waited for the service manager's SIGKILL: 20 s under systemd).
-  if (tracking_stalled && !wait_until_finished(tracking_thread, 2 * kNsPerS)) {
+  // A hung tracking thread is not waited for: 4 s without a heartbeat (the health check's 2 s
+  // and as long again) ends the process without it, as with a stuck source. Before, a stop
+  // of a hung appliance waited for the service manager's SIGKILL (20 s under systemd), also
+  // when the hang began just before the stop and the health check had not seen it yet.
+  if (!wait_for_tracking(tracking_thread, *tracker, 4 * kNsPerS)) {
     options.log(
-        "the tracking thread is hung and did not stop within 2 s: exiting without its outputs");
+        "the tracking thread is hung (no heartbeat for 4 s) and did not stop: exiting without "
+        "its outputs");
     std::fflush(nullptr);
     std::_Exit(1);
   }
