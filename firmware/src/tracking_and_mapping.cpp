@@ -14,7 +14,6 @@ namespace {
 /// key-frames (it tracks on the map it has, counted) until the mapper catches up.
 constexpr std::size_t kKeyframeSlots = 16;
 constexpr std::size_t kCorrectionSlots = 4;
-constexpr int kKeyframesPerGlobalAdjustment = 5;
 /// Key-frame poses one correction carries (the tracker keeps fewer records than this).
 constexpr std::size_t kMaxCorrectedKeyframes = 4096;
 }  // namespace
@@ -76,6 +75,7 @@ void TrackingAndMapping::reset() {
   mapper_ = std::make_unique<dsp::Mapper>(tracker_.intrinsics(), options_.mapper);
   tracker_.reset();
   last_frame_t_ns_ = -1;
+  lockstep_since_global_ = 0;
   {
     const std::lock_guard<std::mutex> lock(map_mutex_);
     map_.reset();
@@ -158,6 +158,12 @@ dsp::TrackResult TrackingAndMapping::on_stereo(const StereoFrame& frame) {
       map_keyframe(*kf, lockstep_correction_);
       tracker_.apply(lockstep_correction_);
       ++counters_.corrections_applied;
+      if (global_due(++lockstep_since_global_)) {
+        lockstep_since_global_ = 0;
+        global_adjust(lockstep_correction_);
+        tracker_.apply(lockstep_correction_);
+        ++counters_.corrections_applied;
+      }
       publish_map();
     }
   }
@@ -176,14 +182,24 @@ void TrackingAndMapping::map_keyframe(const dsp::KeyframeMessage& message,
   mapping_times_.push_back(t1 - t0);
 }
 
+bool TrackingAndMapping::global_due(int keyframes_since) const {
+  return options_.global_adjustment_keyframes > 0 &&
+         keyframes_since >= options_.global_adjustment_keyframes;
+}
+
+void TrackingAndMapping::global_adjust(dsp::MapCorrection& out) {
+  const dsp::MapperStats stats = mapper_->global_adjust(out);
+  global_adjustments_.fetch_add(1, std::memory_order_relaxed);
+  note(stats);
+}
+
 void TrackingAndMapping::note(const dsp::MapperStats& stats) {
   culled_.fetch_add(static_cast<std::uint64_t>(stats.culled), std::memory_order_relaxed);
   culled_keyframes_.fetch_add(static_cast<std::uint64_t>(stats.culled_keyframes),
                               std::memory_order_relaxed);
   map_keyframes_.store(static_cast<std::uint64_t>(mapper_->keyframe_count()),
                        std::memory_order_relaxed);
-  map_points_.store(static_cast<std::uint64_t>(mapper_->points_count()),
-                    std::memory_order_relaxed);
+  map_points_.store(static_cast<std::uint64_t>(mapper_->points_count()), std::memory_order_relaxed);
   stale_messages_.store(mapper_->stale_messages(), std::memory_order_relaxed);
 }
 
@@ -214,12 +230,10 @@ void TrackingAndMapping::mapping_loop() {
       continue;
     }
     if (stop_.load()) break;
-    if (since_global >= kKeyframesPerGlobalAdjustment) {
+    if (global_due(since_global)) {
       if (dsp::MapCorrection* out = corrections_.producer_slot()) {
-        const dsp::MapperStats stats = mapper_->global_adjust(*out);
+        global_adjust(*out);
         corrections_.push();
-        global_adjustments_.fetch_add(1, std::memory_order_relaxed);
-        note(stats);
         publish_map();
         since_global = 0;
         continue;
@@ -248,10 +262,8 @@ std::shared_ptr<const dsp::MapSnapshot> TrackingAndMapping::finish() {
     }
   }
   if (mapper_->keyframe_count() > 0) {
-    const dsp::MapperStats stats = mapper_->global_adjust(lockstep_correction_);
+    global_adjust(lockstep_correction_);
     tracker_.apply(lockstep_correction_);
-    global_adjustments_.fetch_add(1, std::memory_order_relaxed);
-    note(stats);
   }
   publish_map();
   return latest_map();

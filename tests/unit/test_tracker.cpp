@@ -450,6 +450,42 @@ TEST(TrackerSynthetic, FollowsAKnownPathThroughARenderedRoom) {
   EXPECT_LT(p90, 0.03);
 }
 
+TEST(TrackerSynthetic, GlobalAdjustmentsRunOnTheConfiguredScheduleInLockStep) {
+  // Off by default: only the one at the end. Every third key-frame when asked, corrections
+  // applied at once, so lock step stays repeatable either way.
+  const SyntheticRoom room = test::small_room();
+  const SyntheticCamera cam;
+  const std::vector<StampedPose> path = dsp::synthetic_trajectory(room, 20, 5.0);
+  std::vector<StereoFrame> frames;
+  for (const StampedPose& p : path) {
+    StereoFrame f;
+    f.t_ns = p.t_ns;
+    f.left.image = render(room, cam, p.T_world_body, 0);
+    f.right.image = render(room, cam, p.T_world_body, 1);
+    frames.push_back(std::move(f));
+  }
+  const auto run = [&](int every) {
+    firmware::TrackingOptions options;
+    options.mapping_thread = false;
+    options.use_gyro = false;
+    options.global_adjustment_keyframes = every;
+    firmware::TrackingAndMapping system(synthetic_rig(cam), options);
+    for (const StereoFrame& f : frames) {
+      EXPECT_EQ(system.on_stereo(f).state, dsp::TrackingState::kTracking);
+    }
+    (void)system.finish();
+    return system.counters();
+  };
+  const firmware::TrackingCounters off = run(0);
+  EXPECT_EQ(off.global_adjustments, 1u);
+  EXPECT_EQ(off.corrections_applied, off.keyframes);
+  const firmware::TrackingCounters every_third = run(3);
+  ASSERT_GE(every_third.keyframes, 3u);
+  EXPECT_EQ(every_third.keyframes, off.keyframes);
+  EXPECT_EQ(every_third.global_adjustments, every_third.keyframes / 3 + 1);
+  EXPECT_EQ(every_third.corrections_applied, every_third.keyframes + every_third.keyframes / 3);
+}
+
 // --- The real EuRoC still sequence ---------------------------------------------------------------
 
 const recording::EurocRecording& euroc_still() {

@@ -7,10 +7,12 @@
 /// Tracker -> mapper: key-frames through a lock-free SPSC ring of fixed-size slots (a full ring
 /// drops the key-frame and counts it; tracking never blocks). Mapper -> tracker: corrections
 /// through a second ring, applied at the start of the next frame. The mapper runs a local
-/// bundle adjustment after each key-frame and a global one when it has been idle; it publishes
-/// a map snapshot after each.
+/// bundle adjustment after each key-frame (and a global one every
+/// TrackingOptions::global_adjustment_keyframes, when set) and publishes a map snapshot after
+/// each; finish() ends with a global one.
 /// In lock-step mode (no thread) the mapper runs right after each key-frame on the caller's
-/// thread: slower per key-frame, but bit-for-bit repeatable (tests, evaluation).
+/// thread, on the same schedule: slower per key-frame, but bit-for-bit repeatable (tests,
+/// evaluation).
 ///
 /// Threading: on_imu() and on_stereo() belong to one thread (the tracking thread);
 /// latest_map() may be called from any thread; finish() and reset() from the tracking thread
@@ -40,6 +42,13 @@ struct TrackingOptions {
   bool mapping_thread = true;  //!< false: lock step (repeatable)
   bool use_gyro = true;
   int imu_capacity = 4096;  //!< gyro samples kept between frames
+  /// A global bundle adjustment after every this many key-frames while tracking (0: only the
+  /// one finish() runs). Off: each one made the tracked trajectory worse on three of four
+  /// recordings (in lock step: synth-rig quick-turns seed 2 1.42 -> 2.09 cm, seed 1 0.74 ->
+  /// 0.78 cm, the street clip 1.024 -> 1.141 m; walk-turns 1.22 -> 1.12 cm), and in the
+  /// threaded mode, where it ran whenever the mapper was idle, the threaded runs trailed lock
+  /// step by up to 3x on walk-turns (docs/results.md). The local adjustments keep the map.
+  int global_adjustment_keyframes = 0;
   ThreadSpec mapping_thread_spec{"mapping", 0, -1, 0};
   /// Also publish each map here (one reader, e.g. the reconstruction thread); may be null.
   TripleBuffer<std::shared_ptr<const dsp::MapSnapshot>>* map_channel = nullptr;
@@ -96,6 +105,8 @@ class TrackingAndMapping {
   void map_keyframe(const dsp::KeyframeMessage& message, dsp::MapCorrection& out);
   void publish_map();
   void note(const dsp::MapperStats& stats);  //!< mapping side: counters after an adjustment
+  [[nodiscard]] bool global_due(int keyframes_since) const;
+  void global_adjust(dsp::MapCorrection& out);  //!< mapping side: counted
   void start_mapping();
   dsp::RotationPrior gyro_prior(TimeNs t_ns);
 
@@ -109,7 +120,8 @@ class TrackingAndMapping {
   SpscRing<dsp::KeyframeMessage> keyframes_;
   SpscRing<dsp::MapCorrection> corrections_;
   dsp::MapCorrection lockstep_correction_;
-  std::vector<ImuSample> gyro_;  // ring, sized once
+  int lockstep_since_global_ = 0;  //!< key-frames mapped in lock step since a global adjustment
+  std::vector<ImuSample> gyro_;    // ring, sized once
   std::size_t gyro_head_ = 0, gyro_count_ = 0;
   TimeNs last_frame_t_ns_ = -1;
   TrackingCounters counters_;
