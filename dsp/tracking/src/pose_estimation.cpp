@@ -41,27 +41,13 @@ double disparity_weight(const StereoIntrinsics& K, const PoseObservation& obs, d
   return 1.0 / (1.0 + q * q);
 }
 
-Eigen::Vector2d image_uncertainty_px(const StereoIntrinsics& K, const SE3d& T_cam_world,
-                                     const PoseObservation& obs, const Eigen::Vector3d& p_cam) {
-  if (!(obs.sigma_m > 0.0f) || obs.ray_world.isZero()) return Eigen::Vector2d::Zero();
-  // d (u, v) / d p_cam: the first two rows of the stereo projection's Jacobian.
-  const double iz = 1.0 / p_cam.z();
-  const Eigen::Vector3d ray_cam =
-      T_cam_world.linear() * obs.ray_world.cast<double>() * static_cast<double>(obs.sigma_m);
-  return {K.f_px * iz * (ray_cam.x() - p_cam.x() * iz * ray_cam.z()),
-          K.f_px * iz * (ray_cam.y() - p_cam.y() * iz * ray_cam.z())};
-}
-
 double reprojection_error_sq(const StereoIntrinsics& K, const SE3d& T_cam_world,
                              const PoseObservation& obs, double disparity_sigma_px) {
   const Eigen::Vector3d p = T_cam_world * obs.p_world;
   if (p.z() < 1e-3) return std::numeric_limits<double>::infinity();
   const Eigen::Vector3d uvr = K.project(p);
-  const Eigen::Vector2d r(uvr.x() - obs.u_px, uvr.y() - obs.v_px);
-  // r^T (I + d d^T)^-1 r = |r|^2 - (d.r)^2 / (1 + |d|^2).
-  const Eigen::Vector2d d = image_uncertainty_px(K, T_cam_world, obs, p);
-  const double dr = d.dot(r);
-  double e = r.squaredNorm() - dr * dr / (1.0 + d.squaredNorm());
+  const double du = uvr.x() - obs.u_px, dv = uvr.y() - obs.v_px;
+  double e = du * du + dv * dv;
   if (has_right(obs)) {
     // The disparity residual, weighted by what the map point's depth uncertainty allows.
     const double dd = (uvr.x() - uvr.z()) - (obs.u_px - obs.u_right_px);
@@ -95,11 +81,8 @@ SE3d refine_with(const StereoIntrinsics& K, std::span<const PoseObservation> obs
       Jxi.leftCols<3>().setIdentity();
       Jxi.rightCols<3>() = -skew(p);
       Eigen::Matrix<double, 3, 6> J = Jp * Jxi;
-      // Rows: the left image's residual along and across the image of the point's uncertainty
-      // (along it weighted by 1 / (1 + |d|^2): a point whose depth is uncertain, seen from
-      // farther on, still holds the pose across that line), and the disparity u - u_right
-      // (weighted by the point's depth uncertainty, so far points steer the rotation more than
-      // the translation).
+      // Rows: left u, left v, and the disparity u - u_right (weighted by the point's depth
+      // uncertainty, so far points steer the rotation more than the translation).
       const int rows = has_right(o) ? 3 : 2;
       Eigen::Vector3d r(uvr.x() - o.u_px, uvr.y() - o.v_px, 0.0);
       const double w_obs = o.weight;
@@ -108,20 +91,6 @@ SE3d refine_with(const StereoIntrinsics& K, std::span<const PoseObservation> obs
         J.row(2) = J.row(0) - J.row(2);
         r[2] = (uvr.x() - uvr.z()) - (o.u_px - o.u_right_px);
         row_weight[2] = w_obs * disparity_weight(K, o, p.z(), disparity_sigma_px);
-      }
-      const Eigen::Vector2d d = image_uncertainty_px(K, T, o, p);
-      const double d_sq = d.squaredNorm();
-      if (d_sq > 1e-12) {
-        const Eigen::Vector2d a = d / std::sqrt(d_sq);
-        const Eigen::Matrix<double, 1, 6> J_along = a.x() * J.row(0) + a.y() * J.row(1);
-        const Eigen::Matrix<double, 1, 6> J_across = -a.y() * J.row(0) + a.x() * J.row(1);
-        const double r_along = a.x() * r[0] + a.y() * r[1];
-        const double r_across = -a.y() * r[0] + a.x() * r[1];
-        J.row(0) = J_along;
-        J.row(1) = J_across;
-        r[0] = r_along;
-        r[1] = r_across;
-        row_weight[0] = w_obs / (1.0 + d_sq);
       }
       for (int k = 0; k < rows; ++k) {
         const double a = std::abs(r[k]) * std::sqrt(row_weight[k]);

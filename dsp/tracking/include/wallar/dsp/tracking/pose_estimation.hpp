@@ -23,11 +23,6 @@ struct PoseObservation {
   float u_px = 0.0f, v_px = 0.0f;
   float u_right_px = NAN;  //!< NaN when the right eye did not see it
   float sigma_m = 0.0f;    //!< the map point's position uncertainty (1 sigma, along the ray)
-  /// The unit direction (world frame) of that uncertainty: the ray the point was triangulated
-  /// along. Seen from elsewhere, an error along it moves the point's image along one line, by
-  /// more the farther the camera has come; the image residual is down-weighted along that line
-  /// only (zero: the image residual ignores the point's uncertainty).
-  Eigen::Vector3f ray_world = Eigen::Vector3f::Zero();
   /// How much the observation counts in the refinement (a far point's bearing: its depth, from
   /// one small disparity, would otherwise steer the translation).
   float weight = 1.0f;
@@ -65,21 +60,14 @@ struct PoseResult {
 };
 
 /// Squared reprojection error of one observation under T_cam_world, or infinity when the point
-/// is behind the camera: the left image's (u, v) error, with the share along the image of the
-/// point's uncertainty (image_uncertainty_px()) weighted down, plus, with a right match, the
-/// disparity error weighted by disparity_weight().
+/// is behind the camera: the left image's (u, v) error plus, with a right match, the disparity
+/// error weighted by disparity_weight().
 double reprojection_error_sq(const StereoIntrinsics& K, const SE3d& T_cam_world,
                              const PoseObservation& obs, double disparity_sigma_px = 0.5);
 /// How much an observation's disparity residual counts (0..1]: the disparity noise against the
 /// noise plus what the map point's depth uncertainty (obs.sigma_m at depth_m) moves it by.
 double disparity_weight(const StereoIntrinsics& K, const PoseObservation& obs, double depth_m,
                         double sigma_px);
-
-/// Where a 1-sigma error of the map point along its ray moves its image in the left camera at
-/// `p_cam` (the point in that camera) [px]; zero without a ray. The image residual's covariance
-/// is then I + d d^T (pixels of unit noise): along d the residual counts 1 / (1 + |d|^2).
-Eigen::Vector2d image_uncertainty_px(const StereoIntrinsics& K, const SE3d& T_cam_world,
-                                     const PoseObservation& obs, const Eigen::Vector3d& p_cam);
 
 /// Robust pose. `prior` is the predicted T_cam_world (motion model or gyro). `inlier` (same
 /// length as `observations`) receives 1 for inliers. `seed` makes the sampling repeatable.

@@ -127,11 +127,9 @@ struct TrackerConfig {
 /// One map point (world frame = the first frame's rectified left camera).
 struct MapPoint {
   Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
-  std::uint32_t generation = 0;  //!< +1 each time the id is reused
-  std::int32_t segment = 0;      //!< the map segment that made it
-  float sigma_m = 0.0f;          //!< position uncertainty (1 sigma, mostly along the ray)
-  /// That ray: the unit direction (world) from the camera that made the point to the point.
-  Eigen::Vector3f ray_world = Eigen::Vector3f::Zero();
+  std::uint32_t generation = 0;    //!< +1 each time the id is reused
+  std::int32_t segment = 0;        //!< the map segment that made it
+  float sigma_m = 0.0f;            //!< position uncertainty (1 sigma, mostly along the ray)
   std::uint16_t observations = 0;  //!< key-frames that saw it
   bool alive = false;
   std::int32_t keyframe = -1;            //!< the key-frame that made it
