@@ -43,11 +43,12 @@ struct TrackingOptions {
   bool use_gyro = true;
   int imu_capacity = 4096;  //!< gyro samples kept between frames
   /// A global bundle adjustment after every this many key-frames while tracking (0: only the
-  /// one finish() runs). Off: each one made the tracked trajectory worse on three of four
-  /// recordings (in lock step: synth-rig quick-turns seed 2 1.42 -> 2.09 cm, seed 1 0.74 ->
-  /// 0.78 cm, the street clip 1.024 -> 1.141 m; walk-turns 1.22 -> 1.12 cm), and in the
-  /// threaded mode, where it ran whenever the mapper was idle, the threaded runs trailed lock
-  /// step by up to 3x on walk-turns (docs/results.md). The local adjustments keep the map.
+  /// one finish() runs). Off: the threaded mode ran one whenever the mapper was idle after 5
+  /// key-frames, and without them its tracked trajectories came out better where the head turns
+  /// on the spot (synth-rig quick-turns seed 2 2.06 -> 1.36 cm, seed 1 0.90-1.02 -> 0.79 cm),
+  /// the same on the street clip and on seed 3, and a walk with glances (walk-turns seed 2)
+  /// 1.04 -> 1.35 cm mean, still under 0.1 % of its path (docs/results.md). Lock step never
+  /// ran them; the local adjustments keep the map.
   int global_adjustment_keyframes = 0;
   ThreadSpec mapping_thread_spec{"mapping", 0, -1, 0};
   /// Also publish each map here (one reader, e.g. the reconstruction thread); may be null.
