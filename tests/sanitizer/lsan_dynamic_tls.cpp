@@ -50,7 +50,7 @@ int main(int argc, char** argv) {
   }
   for (int i = 0; i < kThreads; ++i) {
     std::thread([touch, i] {
-      if (touch(i % 100) == i % 100) g_touched.fetch_add(1);
+      if (touch(i) == i) g_touched.fetch_add(1);
       for (;;) pause();  // holds its block until the process ends
     }).detach();
   }

@@ -335,11 +335,7 @@ SyntheticRun fly_through_room(int frames, double rate_hz) {
   run.truth = dsp::synthetic_trajectory(room, frames, rate_hz);
   const SE3d T_world0 = run.truth.front().T_world_body;  // the tracker's world: the first camera
   for (const StampedPose& p : run.truth) {
-    StereoFrame f;
-    f.t_ns = p.t_ns;
-    f.left.image = render(room, cam, p.T_world_body, 0);
-    f.right.image = render(room, cam, p.T_world_body, 1);
-    const dsp::TrackResult r = system.on_stereo(f);
+    const dsp::TrackResult r = system.on_stereo(test::stereo(room, cam, p.T_world_body, p.t_ns));
     run.lost += r.state == dsp::TrackingState::kTracking ? 0 : 1;
     run.estimate.push_back(StampedPose{p.t_ns, T_world0 * r.T_world_cam});
   }
@@ -390,13 +386,8 @@ TEST(TrackerSynthetic, GlobalAdjustmentsRunOnTheConfiguredScheduleInLockStep) {
   const SyntheticCamera cam;
   const std::vector<StampedPose> path = dsp::synthetic_trajectory(room, 20, 5.0);
   std::vector<StereoFrame> frames;
-  for (const StampedPose& p : path) {
-    StereoFrame f;
-    f.t_ns = p.t_ns;
-    f.left.image = render(room, cam, p.T_world_body, 0);
-    f.right.image = render(room, cam, p.T_world_body, 1);
-    frames.push_back(std::move(f));
-  }
+  for (const StampedPose& p : path)
+    frames.push_back(test::stereo(room, cam, p.T_world_body, p.t_ns));
   const auto run = [&](int every) {
     firmware::TrackingOptions options;
     options.mapping_thread = false;

@@ -33,16 +33,7 @@ using test::short_tests;
 using test::small_room;
 
 using test::gray_view;
-
-StereoFrame stereo(const SyntheticRoom& room, const SyntheticCamera& cam, const SE3d& T_world_cam,
-                   TimeNs t_ns) {
-  StereoFrame f;
-  f.t_ns = t_ns;
-  f.left.t_ns = f.right.t_ns = t_ns;
-  f.left.image = dsp::render_room_image(room, cam, T_world_cam, 0);
-  f.right.image = dsp::render_room_image(room, cam, T_world_cam, 1);
-  return f;
-}
+using test::stereo;
 
 Image scaled(const Image& in, double gain, double bias) {
   Image out = Image::allocate(in.width(), in.height(), PixelFormat::kGray8);

@@ -10,6 +10,9 @@
 #include <vector>
 
 #include "wallar/core/image.hpp"
+#include "wallar/core/pose.hpp"
+#include "wallar/core/stereo_frame.hpp"
+#include "wallar/core/time.hpp"
 #include "wallar/dsp/tracking/features.hpp"
 #include "wallar/dsp/tracking/fixed_vector.hpp"
 #include "wallar/dsp/tracking/gray_image.hpp"
@@ -35,5 +38,16 @@ inline dsp::FixedVector<dsp::Corner> detect_corners(const Image& img, std::size_
 
 /// The room small enough that its walls are 2-3 m from the path (EuRoC-like rig).
 using dsp::small_room;
+
+/// Both eyes of `cam` rendered in `room` at T_world_cam, stamped `t_ns`.
+inline StereoFrame stereo(const dsp::SyntheticRoom& room, const dsp::SyntheticCamera& cam,
+                          const SE3d& T_world_cam, TimeNs t_ns) {
+  StereoFrame f;
+  f.t_ns = t_ns;
+  f.left.t_ns = f.right.t_ns = t_ns;
+  f.left.image = dsp::render_room_image(room, cam, T_world_cam, 0);
+  f.right.image = dsp::render_room_image(room, cam, T_world_cam, 1);
+  return f;
+}
 
 }  // namespace wallar::test
