@@ -8,12 +8,16 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <numbers>
 #include <vector>
 
 #include "test_support.hpp"
 #include "tracking_support.hpp"
+#include "wallar/core/hash.hpp"
 #include "wallar/dsp/eval/trajectory.hpp"
 #include "wallar/dsp/tracking/features.hpp"
 #include "wallar/dsp/tracking/klt.hpp"
@@ -447,6 +451,127 @@ TEST(MapperBounds, PointsNoLaterKeyframeSeesAreDropped) {
   }
   EXPECT_EQ(culled, 100u);
   EXPECT_EQ(mapper.points_count(), 100);
+}
+
+TEST(MapperBounds, TenMinutesOfNewKeyframesInOneRoomKeepTheMapAndTheAdjustmentTimeFlat) {
+  // A key-frame every 0.5 s for ten minutes (1,200) from a head wandering a 6 x 5 x 2.7 m room
+  // whose walls, floor and ceiling carry 3,000 points: every key-frame is new (a pose no other
+  // had), unlike laps of one rendered loop, so the local adjustment runs each time. The
+  // observations are the stereo projections with 0.3 px of seeded noise; points the mapper culls
+  // come back as new ones (a new generation) when seen again, as the tracker would make them.
+  const dsp::StereoIntrinsics K{450.0, 376.0, 240.0, 0.11};
+  const int kKeyframes = test::short_tests() ? 240 : 1200;
+  std::uint64_t rng = 12345;
+  const auto uniform = [&rng] {
+    return static_cast<double>(core::splitmix64_next(rng) >> 11) * 0x1.0p-53;
+  };
+  const auto gauss = [&] {  // Box-Muller, its two draws in a fixed order
+    const double r = std::sqrt(-2.0 * std::log(1.0 - uniform()));
+    return r * std::cos(2.0 * std::numbers::pi * uniform());
+  };
+  std::vector<Eigen::Vector3d> world;
+  while (world.size() < 3000) {
+    const double a = uniform(), b = uniform();
+    switch (world.size() % 6) {
+      case 0:
+        world.emplace_back(6.0 * a, 0.0, 2.7 * b);
+        break;
+      case 1:
+        world.emplace_back(6.0 * a, 5.0, 2.7 * b);
+        break;
+      case 2:
+        world.emplace_back(0.0, 5.0 * a, 2.7 * b);
+        break;
+      case 3:
+        world.emplace_back(6.0, 5.0 * a, 2.7 * b);
+        break;
+      case 4:
+        world.emplace_back(6.0 * a, 5.0 * b, 0.0);
+        break;
+      default:
+        world.emplace_back(6.0 * a, 5.0 * b, 2.7);
+        break;
+    }
+  }
+  std::vector<std::uint32_t> generation(world.size(), 1);
+  std::vector<bool> in_map(world.size(), false);
+  dsp::Mapper mapper(K);
+  dsp::MapCorrection out(4000, 4000);
+  std::vector<double> ba_ms;
+  int max_keyframes = 0, max_points = 0;
+  std::size_t culled_points = 0;
+  for (int k = 0; k < kKeyframes; ++k) {
+    // A wander: the head drifts around the room's middle at walking pace and looks about.
+    const double t = 0.5 * k;
+    const Eigen::Vector3d c(3.0 + 1.8 * std::sin(0.11 * t) + 0.4 * std::sin(0.53 * t),
+                            2.5 + 1.4 * std::cos(0.07 * t) + 0.3 * std::sin(0.41 * t),
+                            1.6 + 0.1 * std::sin(0.9 * t));
+    const double yaw = 0.9 * t + 0.6 * std::sin(0.37 * t), pitch = 0.25 * std::sin(0.23 * t);
+    SE3d T_wc = SE3d::Identity();
+    T_wc.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                     Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()))
+                        .toRotationMatrix() *
+                    (Eigen::Matrix3d() << 0, 0, 1, -1, 0, 0, 0, -1, 0).finished();
+    T_wc.translation() = c;
+    const SE3d T_cw = T_wc.inverse();
+    dsp::KeyframeMessage m(world.size(), world.size());
+    m.id = k;
+    m.t_ns = static_cast<TimeNs>(t * 1e9);
+    m.T_world_cam = T_wc;
+    m.segment_start = k == 0;
+    for (std::size_t i = 0; i < world.size(); ++i) {
+      const Eigen::Vector3d p = T_cw * world[i];
+      if (p.z() < 0.3 || p.z() > 8.0) continue;
+      const Eigen::Vector3d uvr = K.project(p);
+      if (uvr.x() < 0.0 || uvr.x() > 751.0 || uvr.y() < 0.0 || uvr.y() > 479.0) continue;
+      const auto id = static_cast<std::int32_t>(i);
+      const double nu = 0.3 * gauss(), nv = 0.3 * gauss(), nr = 0.3 * gauss();
+      m.observations.push_back({id, generation[i], static_cast<float>(uvr.x() + nu),
+                                static_cast<float>(uvr.y() + nv),
+                                static_cast<float>(uvr.z() + nr)});
+      if (!in_map[i]) {
+        const double sigma = p.z() * p.z() / (K.f_px * K.baseline_m) * 0.5;
+        m.new_points.push_back({id, generation[i], world[i], static_cast<float>(sigma)});
+        in_map[i] = true;
+      }
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    mapper.add_keyframe(m);
+    const dsp::MapperStats s = mapper.local_adjust(out);
+    ba_ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    for (const dsp::PointRef& r : out.culled) {
+      if (r.id < 0 || r.generation != generation[static_cast<std::size_t>(r.id)]) continue;
+      in_map[static_cast<std::size_t>(r.id)] = false;
+      ++generation[static_cast<std::size_t>(r.id)];
+      ++culled_points;
+    }
+    max_keyframes = std::max(max_keyframes, s.keyframes);
+    max_points = std::max(max_points, s.points);
+  }
+  // Medians of the adjustment time per key-frame, minute by minute (120 key-frames a minute).
+  const auto minute_median = [&](int minute) {
+    std::vector<double> v(ba_ms.begin() + minute * 120, ba_ms.begin() + (minute + 1) * 120);
+    std::nth_element(v.begin(), v.begin() + 60, v.end());
+    return v[60];
+  };
+  const int minutes = kKeyframes / 120;
+  std::printf(
+      "%d key-frames over %d min: %d in the map at the end (at most %d), %llu dropped as "
+      "redundant; points %d at the end (at most %d), %zu culled\n",
+      kKeyframes, minutes, mapper.keyframe_count(), max_keyframes,
+      static_cast<unsigned long long>(mapper.culled_keyframes()), mapper.points_count(), max_points,
+      culled_points);
+  for (int i = 0; i < minutes; ++i)
+    std::printf("  minute %d: median add + local BA %.2f ms\n", i + 1, minute_median(i));
+  // The room is covered in the first minutes: key-frames past that are redundant and dropped,
+  // the points are the room's, and each adjustment costs what it did once the room was seen.
+  EXPECT_LE(max_points, static_cast<int>(world.size()));
+  EXPECT_LE(max_keyframes, 100);
+  EXPECT_GE(mapper.culled_keyframes(), static_cast<std::uint64_t>(kKeyframes / 2));
+  if (!test::short_tests()) {
+    EXPECT_LE(minute_median(minutes - 1), 2.0 * minute_median(1));
+  }
 }
 
 // --- What the wall search sees of a moving rig's map ------------------------------------------
