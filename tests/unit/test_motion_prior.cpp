@@ -1,15 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file test_motion_prior.cpp
 /// @brief The tracker's prediction: gyro integration (bias, camera-IMU time offset, ring halves,
-/// extrapolation), the predicted pose of a fast turn far from the world origin, and the head's
-/// pivot learnt from tracked poses.
+/// extrapolation) and the predicted pose of a fast turn far from the world origin.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <vector>
 
 #include "wallar/dsp/imu/gyro_integration.hpp"
-#include "wallar/dsp/tracking/head_pivot.hpp"
 #include "wallar/dsp/tracking/tracker.hpp"
 
 namespace wallar {
@@ -118,73 +116,6 @@ TEST(MotionPrior, AFastTurnFarFromTheOriginKeepsThePredictedCentreOnThePath) {
   SE3d old = velocity * T1;
   old.linear() = gyro.q_prev_cur.conjugate().toRotationMatrix() * T1.linear();
   EXPECT_GT((centre(old) - centre(T2)).norm(), 1.5);
-}
-
-/// A head on a neck: the pivot walks at `walk_m_s` along x (bobbing by `bob_m`), the head yaws
-/// through quick turns (peaking near 260 deg/s) and nods; the camera centre sits `lever_cam`
-/// from the pivot in the camera frame. T_cam_world at t_s.
-SE3d head_on_neck(double t_s, const Eigen::Vector3d& lever_cam, double walk_m_s, bool turns,
-                  double bob_m = 0.025) {
-  const double yaw = turns ? 0.9 * std::sin(2.0 * kPi * 0.8 * t_s) : 0.0;
-  const double pitch = turns ? 0.3 * std::sin(2.0 * kPi * 0.5 * t_s + 1.0) : 0.0;
-  const Eigen::Matrix3d R_world_cam =
-      Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
-      Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()).toRotationMatrix() *
-      (Eigen::Matrix3d() << 0, 0, 1, -1, 0, 0, 0, -1, 0).finished();
-  const Eigen::Vector3d pivot(5.0 + walk_m_s * t_s, -3.0,
-                              1.5 + bob_m * std::cos(2.0 * kPi * 1.8 * t_s));
-  SE3d T_wc = SE3d::Identity();
-  T_wc.linear() = R_world_cam;
-  T_wc.translation() = pivot + R_world_cam * lever_cam;
-  return SE3d(T_wc.inverse());
-}
-
-TEST(HeadPivot, LearnsTheLeverOfAHeadTurningOnItsNeckAndPredictsTheTurnsArc) {
-  // Camera 11 cm ahead of the neck, 6 cm above it, 3 cm to its side (camera frame: x right,
-  // y down, z ahead), walking at 0.4 m/s; 30 Hz for 3 s.
-  const Eigen::Vector3d lever(-0.03, -0.06, 0.11);
-  const double dt = 1.0 / 30.0;
-  dsp::HeadPivot pivot;
-  for (int k = 0; k < 90; ++k) {
-    pivot.observe(static_cast<TimeNs>(k * dt * 1e9), head_on_neck(k * dt, lever, 0.4, true));
-  }
-  EXPECT_LT((pivot.lever_cam() - lever).norm(), 0.005) << pivot.lever_cam().transpose();
-  // The next frames (the pivot now walking evenly), as the tracker predicts them from the last
-  // two and the gyro's rotation: through the turn's slowing down the constant-velocity centre
-  // is millimetres off a frame, the swing about the learnt pivot a tenth of that.
-  double worst_pivot = 0.0, worst_constant = 0.0;
-  for (int k = 90; k < 110; ++k) {
-    const SE3d T0 = head_on_neck((k - 1) * dt, lever, 0.4, true, 0.0);
-    const SE3d T1 = head_on_neck(k * dt, lever, 0.4, true, 0.0);
-    const SE3d T2 = head_on_neck((k + 1) * dt, lever, 0.4, true, 0.0);
-    dsp::RotationPrior gyro;
-    gyro.valid = true;
-    gyro.q_prev_cur = Eigen::Quaterniond(T1.linear() * T2.linear().transpose());
-    const SE3d velocity = T1 * T0.inverse();
-    const SE3d swung = dsp::predict_camera_pose(T1, velocity, gyro, pivot.lever_cam());
-    const SE3d constant = dsp::predict_camera_pose(T1, velocity, gyro);
-    worst_pivot = std::max(worst_pivot, (centre(swung) - centre(T2)).norm());
-    worst_constant = std::max(worst_constant, (centre(constant) - centre(T2)).norm());
-  }
-  EXPECT_GT(worst_constant, 0.002);
-  EXPECT_LT(worst_pivot, 0.1 * worst_constant) << worst_pivot;
-}
-
-TEST(HeadPivot, ARigThatDoesNotTurnLearnsNoLever) {
-  // Walking straight with a bob (the centre's velocity changes, the rotation does not): nothing
-  // ties the velocity changes to a turn, so the prediction stays the constant-velocity one.
-  const Eigen::Vector3d lever(-0.03, -0.06, 0.11);
-  const double dt = 1.0 / 30.0;
-  dsp::HeadPivot pivot;
-  for (int k = 0; k < 300; ++k) {
-    pivot.observe(static_cast<TimeNs>(k * dt * 1e9), head_on_neck(k * dt, lever, 1.4, false));
-  }
-  EXPECT_LT(pivot.lever_cam().norm(), 1e-6);
-  // Poses out of order or a broken history add nothing either.
-  pivot.observe(0, head_on_neck(0.0, lever, 1.4, true));
-  pivot.break_history();
-  pivot.observe(1, head_on_neck(0.5, lever, 1.4, true));
-  EXPECT_LT(pivot.lever_cam().norm(), 1e-6);
 }
 
 TEST(MotionPrior, TheGyrosTrustShrinksWithTheTimeSinceTheLastTrackedFrame) {

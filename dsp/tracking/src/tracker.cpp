@@ -49,22 +49,16 @@ double gyro_prior_sigma_deg(const TrackerConfig& config, double dt_s) {
   return config.gyro_rotation_sigma_deg * dt_s / config.gyro_sigma_interval_s;
 }
 
-SE3d predict_camera_pose(const SE3d& T_cw_last, const SE3d& velocity, const RotationPrior& gyro,
-                         const Eigen::Vector3d& lever_cam) {
+SE3d predict_camera_pose(const SE3d& T_cw_last, const SE3d& velocity, const RotationPrior& gyro) {
   const Eigen::Matrix3d& R_last = T_cw_last.linear();
   const Eigen::Vector3d c_last = -R_last.transpose() * T_cw_last.translation();
   const SE3d T_cw_before = velocity.inverse() * T_cw_last;
   const Eigen::Vector3d c_before = -T_cw_before.linear().transpose() * T_cw_before.translation();
+  const Eigen::Vector3d c_pred = c_last + (c_last - c_before);
   const Eigen::Matrix3d R_cur_last =
       gyro.valid ? gyro.q_prev_cur.conjugate().toRotationMatrix() : velocity.linear();
   SE3d T = SE3d::Identity();
   T.linear() = R_cur_last * R_last;
-  // c = pivot + R_world_cam * lever: the pivot moves on by its last displacement, the lever
-  // turns with the camera (lever 0: the centre moves on by its own last displacement).
-  const Eigen::Vector3d pivot_step =
-      (c_last - c_before) - (R_last.transpose() - T_cw_before.linear().transpose()) * lever_cam;
-  const Eigen::Vector3d c_pred =
-      c_last + pivot_step + (T.linear().transpose() - R_last.transpose()) * lever_cam;
   T.translation() = -T.linear() * c_pred;
   return orthonormalised(T);
 }
@@ -159,7 +153,6 @@ struct Tracker::Impl {
   TimeNs last_t_ns = 0;               // the last frame's time
   Eigen::Matrix3d gyro_R_cw = Eigen::Matrix3d::Identity();
   double gyro_sigma_deg = 0.0;  // this frame's trust in gyro_R_cw (gyro_prior_sigma_deg)
-  HeadPivot pivot;
 
   std::int64_t now() const { return clock != nullptr ? clock() : 0; }
   KeyframeRecord* keyframe_by_id(std::int32_t id) {
@@ -224,7 +217,6 @@ Tracker::Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock c
   Impl& m = *impl_;
   m.config = config;
   m.clock = clock;
-  m.pivot = HeadPivot(m.config.pivot);
   if (config.max_tracks < 8 || config.max_map_points < config.max_tracks ||
       config.max_keyframes < 2 || config.pyramid_levels < 2) {
     throw std::invalid_argument(
@@ -323,7 +315,6 @@ void Tracker::reset() {
   m.lost_frames = 0;
   m.state = TrackingState::kInitialising;
   m.T_cw = m.T_cw_last = m.velocity = SE3d::Identity();
-  m.pivot.reset();
   m.message_pending = false;
 }
 
@@ -948,12 +939,9 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
     m.initialise(t_ns, result);
     t3 = t4 = m.now();
   } else {
-    // Prediction: constant velocity, with the gyro's rotation when given (and then the centre
-    // swung about the head's pivot as learnt so far).
+    // Prediction: constant velocity, with the gyro's rotation when given.
+    const SE3d prior = predict_camera_pose(m.T_cw, m.velocity, gyro);
     m.gyro_prior_valid = gyro.valid && gyro.bias_corrected;
-    const Eigen::Vector3d lever =
-        m.gyro_prior_valid && m.config.head_pivot ? m.pivot.lever_cam() : Eigen::Vector3d::Zero();
-    const SE3d prior = predict_camera_pose(m.T_cw, m.velocity, gyro, lever);
     // The turn rate this frame (the prediction's: the gyro's when it has one).
     const double dt_s = m.last_t_ns > 0 && t_ns > m.last_t_ns ? ns_to_s(t_ns - m.last_t_ns) : 0.0;
     m.turn_rate_deg_s =
@@ -979,9 +967,8 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
       if (!pose.ok && !m.velocity.isApprox(SE3d::Identity())) {
         // The motion model may be what failed (the head stopped or turned back): once more from
         // the last pose, turned as the gyro says.
-        const SE3d still = gyro.valid
-                               ? predict_camera_pose(m.T_cw_last, SE3d::Identity(), gyro, lever)
-                               : m.T_cw_last;
+        const SE3d still =
+            gyro.valid ? predict_camera_pose(m.T_cw_last, SE3d::Identity(), gyro) : m.T_cw_last;
         m.stage1(still, result);
         if (!m.obs.empty()) pose = m.solve(still, true);
       }
@@ -1011,12 +998,6 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
     if (ok) {
       m.state = TrackingState::kTracking;
       m.velocity = orthonormalised(m.T_cw * m.T_cw_last.inverse());
-      // The pivot learns from frames vision holds well (a blurred turn's centre is weaker).
-      if (result.relocalised) {
-        m.pivot.break_history();
-      } else {
-        m.pivot.observe(t_ns, m.T_cw, m.turn_rate_deg_s <= m.config.keyframe_max_turn_deg_s);
-      }
       m.lost_frames = 0;
       m.cull_points();
       if (m.need_keyframe()) {
@@ -1028,7 +1009,6 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
       }
     } else {
       m.state = TrackingState::kLost;
-      m.pivot.break_history();
       ++m.lost_frames;
       if (m.lost_frames > m.config.lost_extrapolate_frames) m.velocity = SE3d::Identity();
       if (m.config.new_segment_after_lost > 0 && m.lost_frames >= m.config.new_segment_after_lost &&
@@ -1091,7 +1071,6 @@ void Tracker::apply(const MapCorrection& correction) {
       const SE3d shift = c.T_world_cam * k->T_world_cam.inverse();  // old world -> new world
       m.T_cw = orthonormalised(m.T_cw * shift.inverse());
       m.T_cw_last = orthonormalised(m.T_cw_last * shift.inverse());
-      m.pivot.break_history();  // its poses were in the old world
     }
     k->T_world_cam = c.T_world_cam;
   }

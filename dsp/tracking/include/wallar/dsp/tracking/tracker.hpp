@@ -41,7 +41,6 @@
 #include "wallar/dsp/tracking/features.hpp"
 #include "wallar/dsp/tracking/fixed_vector.hpp"
 #include "wallar/dsp/tracking/gray_image.hpp"
-#include "wallar/dsp/tracking/head_pivot.hpp"
 #include "wallar/dsp/tracking/klt.hpp"
 #include "wallar/dsp/tracking/pose_estimation.hpp"
 #include "wallar/dsp/tracking/stereo_camera.hpp"
@@ -119,10 +118,6 @@ struct TrackerConfig {
   /// frame rotation within 0.001 deg; 0.01 made the pose follow that noise (docs/results.md, HIL).
   double gyro_rotation_sigma_deg = 0.04;
   double gyro_sigma_interval_s = 0.05;
-  /// With the gyro, the prediction swings the camera centre about the head's pivot, its lever
-  /// learnt from the tracked poses (HeadPivot); false: constant velocity of the centre.
-  bool head_pivot = true;
-  HeadPivotParams pivot;
   DetectorParams detector{.bucket_px = 32};
   KltParams klt;
   StereoMatchParams stereo;
@@ -273,11 +268,8 @@ double gyro_prior_sigma_deg(const TrackerConfig& config, double dt_s);
 /// given, else the last frame-to-frame rotation again. Composing the relative motion keeps the
 /// centre where the motion puts it, wherever the camera is (replacing the rotation of a
 /// world-to-camera transform and keeping its translation would swing the centre about the
-/// world origin by the turn's angle). With `lever_cam` (the centre's lever from the head's pivot
-/// in the camera frame, HeadPivot) the pivot moves on by its last displacement and the centre
-/// swings about it as the camera turns: a quick turn that slows down slows the centre with it.
-SE3d predict_camera_pose(const SE3d& T_cw_last, const SE3d& velocity, const RotationPrior& gyro,
-                         const Eigen::Vector3d& lever_cam = Eigen::Vector3d::Zero());
+/// world origin by the turn's angle).
+SE3d predict_camera_pose(const SE3d& T_cw_last, const SE3d& velocity, const RotationPrior& gyro);
 
 class Tracker {
  public:
