@@ -75,10 +75,10 @@ struct TrackerConfig {
   double keyframe_angle_deg = 12.0;
   double keyframe_track_ratio = 0.5;  //!< fewer tracked points than this x max_tracks: key-frame
   int keyframe_min_frames = 5;  //!< ... but not sooner than this after the last (sparse scenes)
-  /// While the camera turns faster than this, a key-frame waits (the frame is blurred along
-  /// the turn: corners sit at the ends of their streaks, which would bias the new points and
-  /// the key-frame's observations) unless fewer than a quarter of max_tracks are tracked
-  /// [deg/s].
+  /// While the camera turns faster than this, a key-frame for distance or angle waits (the
+  /// frame is blurred along the turn: corners sit at the ends of their streaks, which would
+  /// bias the new points and the key-frame's observations); one for tracks thinning out
+  /// (keyframe_track_ratio) does not [deg/s].
   double keyframe_max_turn_deg_s = 60.0;
   /// Motion blur: a frame turning faster than keyframe_max_turn_deg_s sees its points with
   /// 1 + this x the excess rate [deg/s] pixels of error, in its pose (against the gyro's
