@@ -460,7 +460,7 @@ TEST(MapperBounds, TenMinutesOfNewKeyframesInOneRoomKeepTheMapAndTheAdjustmentTi
   // observations are the stereo projections with 0.3 px of seeded noise; points the mapper culls
   // come back as new ones (a new generation) when seen again, as the tracker would make them.
   const dsp::StereoIntrinsics K{450.0, 376.0, 240.0, 0.11};
-  const int kKeyframes = test::short_tests() ? 240 : 1200;
+  const int kKeyframes = test::short_tests() ? 120 : 1200;
   std::uint64_t rng = 12345;
   const auto uniform = [&rng] {
     return static_cast<double>(core::splitmix64_next(rng) >> 11) * 0x1.0p-53;
