@@ -770,7 +770,8 @@ bool Tracker::Impl::need_keyframe() const {
   // key-frame sees its points less precisely), but the tracks thinning out does not: a turn
   // into unmapped space that waits for them to run out leaves the new heading's first
   // key-frame to the turn's blurred peak with a few dozen tracks, and its error to every point
-  // it makes (synth-rig quick-turns: 1.1-1.4 % of the path against 0.4-0.9 %).
+  // it makes (synth-rig quick-turns seeds 1-3: 0.4-0.9 % of the path against 0.6-1.4 %, and
+  // no lost frames on eight clips; docs/results.md).
   if (turn_rate_deg_s > config.keyframe_max_turn_deg_s &&
       static_cast<double>(tracks.size()) >=
           config.keyframe_track_ratio * static_cast<double>(config.max_tracks)) {
