@@ -188,6 +188,19 @@ struct Tracker::Impl {
     const double r = config.max_depth_m / depth;
     return static_cast<float>(r * r);
   }
+  /// What the pose sees of map point `p` at (u, v) in the left image (u_right: NaN when the
+  /// right image did not see it; a far point is used for its bearing only).
+  static PoseObservation observation_of(const MapPoint& p, float u, float v, float u_right,
+                                        float weight) {
+    PoseObservation o;
+    o.p_world = p.p_world;
+    o.sigma_m = p.sigma_m;
+    o.weight = weight;
+    o.u_px = u;
+    o.v_px = v;
+    o.u_right_px = p.far ? NAN : u_right;
+    return o;
+  }
   void make_thumbnail(const GrayView& img, std::vector<float>& out) const;
   const char* check(const Image& left, const Image& right) const;
   void rectify(const Image& left, const Image& right);
@@ -552,14 +565,7 @@ void Tracker::Impl::stage1(const SE3d& prior, TrackResult& result) {
     }
     if (!klt_track(prev, cur, t.u_px, t.v_px, u, v, config.klt, brightness)) continue;
     const std::optional<float> ur = p.far ? std::nullopt : right_u(u, v, depth);
-    PoseObservation o;
-    o.p_world = p.p_world;
-    o.sigma_m = p.sigma_m;
-    o.weight = observation_weight(p, depth);
-    o.u_px = u;
-    o.v_px = v;
-    o.u_right_px = ur ? *ur : NAN;
-    obs.push_back(o);
+    obs.push_back(observation_of(p, u, v, ur ? *ur : NAN, observation_weight(p, depth)));
     obs_point.push_back(t.point);
     p.tracked_frame = static_cast<std::int32_t>(frame);  // stage 2 leaves it alone
   }
@@ -594,14 +600,8 @@ void Tracker::Impl::stage2(int radius, TrackResult& result, const KeyframeRecord
     candidates.push_back(id);
     if (!hit || cost > config.max_patch_cost) return;
     const std::optional<float> ur = p.far ? std::nullopt : right_u(hit->first, hit->second, depth);
-    PoseObservation o;
-    o.p_world = p.p_world;
-    o.sigma_m = p.sigma_m;
-    o.weight = observation_weight(p, depth);
-    o.u_px = hit->first;
-    o.v_px = hit->second;
-    o.u_right_px = ur ? *ur : NAN;
-    obs.push_back(o);
+    obs.push_back(
+        observation_of(p, hit->first, hit->second, ur ? *ur : NAN, observation_weight(p, depth)));
     obs_point.push_back(id);
     p.tracked_frame = static_cast<std::int32_t>(frame);  // not searched twice this frame
     ++occupancy[static_cast<std::size_t>(b)];
@@ -695,13 +695,7 @@ bool Tracker::Impl::relocalise_by_appearance(const KeyframeRecord& k, TrackResul
       const std::optional<float> ur = right_u(c.u_px, c.v_px, -1.0);
       c.u_right_px = ur ? *ur : NAN;
     }
-    PoseObservation o;
-    o.p_world = p.p_world;
-    o.sigma_m = p.sigma_m;
-    o.u_px = c.u_px;
-    o.v_px = c.v_px;
-    o.u_right_px = p.far ? NAN : c.u_right_px;
-    if (!obs.push_back(o)) break;
+    if (!obs.push_back(observation_of(p, c.u_px, c.v_px, c.u_right_px, 1.0f))) break;
     obs_point.push_back(ref.id);
   }
   if (static_cast<int>(obs.size()) < config.relocalise_min_inliers) return false;
