@@ -10,12 +10,12 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdint>
-#include <random>
 #include <stdexcept>
 #include <string>
 #include <unsupported/Eigen/MatrixFunctions>
 #include <vector>
 
+#include "tracking_support.hpp"
 #include "wallar/dsp/tracking/bundle_adjustment.hpp"
 
 namespace wallar::dsp {
@@ -24,24 +24,7 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180.0;
 
-// Doubles from raw mt19937_64 outputs (std:: distributions differ across standard libraries).
-class Rng {
- public:
-  explicit Rng(std::uint64_t seed) : gen_(seed) {}
-  double uniform() { return static_cast<double>(gen_() >> 11) * 0x1.0p-53; }  // [0, 1)
-  double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
-  double gaussian() {  // Box-Muller
-    const double u1 = 1.0 - uniform(), u2 = uniform();
-    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * kPi * u2);
-  }
-  Eigen::Vector3d direction() {
-    Eigen::Vector3d d(gaussian(), gaussian(), gaussian());
-    return d.normalized();
-  }
-
- private:
-  std::mt19937_64 gen_;
-};
+using test::Rng;
 
 // 640x480 cameras (f of OpenCV's sample pair, docs/results.md) on a 12 cm baseline.
 const StereoIntrinsics kRig{535.0, 320.0, 240.0, 0.12};

@@ -12,12 +12,10 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <numbers>
 #include <vector>
 
 #include "test_support.hpp"
 #include "tracking_support.hpp"
-#include "wallar/core/hash.hpp"
 #include "wallar/dsp/eval/trajectory.hpp"
 #include "wallar/dsp/tracking/features.hpp"
 #include "wallar/dsp/tracking/klt.hpp"
@@ -461,17 +459,10 @@ TEST(MapperBounds, TenMinutesOfNewKeyframesInOneRoomKeepTheMapAndTheAdjustmentTi
   // come back as new ones (a new generation) when seen again, as the tracker would make them.
   const dsp::StereoIntrinsics K{450.0, 376.0, 240.0, 0.11};
   const int kKeyframes = test::short_tests() ? 120 : 1200;
-  std::uint64_t rng = 12345;
-  const auto uniform = [&rng] {
-    return static_cast<double>(core::splitmix64_next(rng) >> 11) * 0x1.0p-53;
-  };
-  const auto gauss = [&] {  // Box-Muller, its two draws in a fixed order
-    const double r = std::sqrt(-2.0 * std::log(1.0 - uniform()));
-    return r * std::cos(2.0 * std::numbers::pi * uniform());
-  };
+  test::Rng rng(12345);
   std::vector<Eigen::Vector3d> world;
   while (world.size() < 3000) {
-    const double a = uniform(), b = uniform();
+    const double a = rng.uniform(), b = rng.uniform();
     switch (world.size() % 6) {
       case 0:
         world.emplace_back(6.0 * a, 0.0, 2.7 * b);
@@ -525,7 +516,7 @@ TEST(MapperBounds, TenMinutesOfNewKeyframesInOneRoomKeepTheMapAndTheAdjustmentTi
       const Eigen::Vector3d uvr = K.project(p);
       if (uvr.x() < 0.0 || uvr.x() > 751.0 || uvr.y() < 0.0 || uvr.y() > 479.0) continue;
       const auto id = static_cast<std::int32_t>(i);
-      const double nu = 0.3 * gauss(), nv = 0.3 * gauss(), nr = 0.3 * gauss();
+      const double nu = 0.3 * rng.gaussian(), nv = 0.3 * rng.gaussian(), nr = 0.3 * rng.gaussian();
       m.observations.push_back({id, generation[i], static_cast<float>(uvr.x() + nu),
                                 static_cast<float>(uvr.y() + nv),
                                 static_cast<float>(uvr.z() + nr)});

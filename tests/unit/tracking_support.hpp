@@ -5,8 +5,12 @@
 /// Threading: test-thread only.
 #pragma once
 
+#include <Eigen/Core>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <numbers>
+#include <random>
 #include <vector>
 
 #include "wallar/core/image.hpp"
@@ -20,6 +24,26 @@
 #include "wallar/dsp/tracking/synthetic_room.hpp"
 
 namespace wallar::test {
+
+/// Seeded doubles from raw mt19937_64 outputs (std:: distributions differ across standard
+/// libraries, so a test's figures would too).
+class Rng {
+ public:
+  explicit Rng(std::uint64_t seed) : gen_(seed) {}
+  double uniform() { return static_cast<double>(gen_() >> 11) * 0x1.0p-53; }  // [0, 1)
+  double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
+  double gaussian() {  // Box-Muller
+    const double u1 = 1.0 - uniform(), u2 = uniform();
+    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * std::numbers::pi * u2);
+  }
+  Eigen::Vector3d direction() {
+    Eigen::Vector3d d(gaussian(), gaussian(), gaussian());
+    return d.normalized();
+  }
+
+ private:
+  std::mt19937_64 gen_;
+};
 
 /// The tracker's view of a gray image (no copy: `img` must outlive it).
 inline dsp::GrayView gray_view(const Image& img) {
