@@ -40,6 +40,7 @@ struct MapperKeyframe {
   bool segment_start = false;
   bool alive = true;
   float observation_sigma_px = 1.0f;
+  bool gyro_aided = false;        // its rotation was tracked with the gyro's
   double travelled_m = 0.0;       // from the key-frame before it (of its segment)
   std::vector<PointSlot> points;  // what it saw (a slot whose generation moved on is gone)
 };
@@ -96,6 +97,7 @@ void Mapper::add_keyframe(const KeyframeMessage& message) {
   record.segment = message.segment;
   record.segment_start = message.segment_start;
   record.observation_sigma_px = std::max(1.0f, message.observation_sigma_px);
+  record.gyro_aided = message.gyro_aided;
   for (auto it = m.keyframes.rbegin(); it != m.keyframes.rend(); ++it) {
     if (it->segment != record.segment) continue;
     record.travelled_m = (it->T_world_cam.translation() - record.T_world_cam.translation()).norm();
@@ -197,10 +199,14 @@ MapperStats Mapper::Impl::adjust(const std::vector<int>& window, int iterations,
   const auto add = [&](int k, bool fixed) {
     ba_keyframe_of[static_cast<std::size_t>(k)] = static_cast<std::int32_t>(ba_keyframes.size());
     BaKeyframe b{keyframes[static_cast<std::size_t>(k)].T_world_cam.inverse(), fixed};
-    const double travelled = keyframes[static_cast<std::size_t>(k)].travelled_m;
+    const MapperKeyframe& kf = keyframes[static_cast<std::size_t>(k)];
+    const double travelled = kf.travelled_m;
     b.prior_sigma_m = config.keyframe_prior_m + config.keyframe_prior_m_per_m * travelled;
-    b.prior_sigma_rad =
-        (config.keyframe_prior_deg + config.keyframe_prior_deg_per_m * travelled) * M_PI / 180.0;
+    const double prior_deg =
+        kf.gyro_aided
+            ? config.keyframe_prior_deg_gyro + config.keyframe_prior_deg_per_m_gyro * travelled
+            : config.keyframe_prior_deg + config.keyframe_prior_deg_per_m * travelled;
+    b.prior_sigma_rad = prior_deg * M_PI / 180.0;
     ba_keyframes.push_back(b);
     keyframe_of_ba.push_back(k);
   };

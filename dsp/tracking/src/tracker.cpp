@@ -37,6 +37,7 @@ void KeyframeMessage::copy_from(const KeyframeMessage& other) {
   segment = other.segment;
   segment_start = other.segment_start;
   observation_sigma_px = other.observation_sigma_px;
+  gyro_aided = other.gyro_aided;
   culled.clear();
   for (const PointRef& point : other.culled) culled.push_back(point);
 }
@@ -152,7 +153,8 @@ struct Tracker::Impl {
   double turn_rate_deg_s = 0.0;       // this frame's
   TimeNs last_t_ns = 0;               // the last frame's time
   Eigen::Matrix3d gyro_R_cw = Eigen::Matrix3d::Identity();
-  double gyro_sigma_deg = 0.0;  // this frame's trust in gyro_R_cw (gyro_prior_sigma_deg)
+  double gyro_sigma_deg = 0.0;   // this frame's trust in gyro_R_cw (gyro_prior_sigma_deg)
+  bool pose_gyro_aided = false;  // this frame's pose was solved with the gyro's rotation prior
 
   std::int64_t now() const { return clock != nullptr ? clock() : 0; }
   KeyframeRecord* keyframe_by_id(std::int32_t id) {
@@ -852,6 +854,7 @@ void Tracker::Impl::make_keyframe(TimeNs t_ns, TrackResult& result) {
   message.segment = segment;
   message.segment_start = !segment_started;
   message.observation_sigma_px = static_cast<float>(observation_sigma_px);
+  message.gyro_aided = pose_gyro_aided;
   message.observations.clear();
   message.new_points.clear();
   message.culled.clear();
@@ -934,6 +937,7 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
   const std::int64_t t2 = m.now();
   std::int64_t t3 = t2, t4 = t2;
   m.stage2_ran = false;
+  m.pose_gyro_aided = false;
 
   if (m.state == TrackingState::kInitialising) {
     m.initialise(t_ns, result);
@@ -977,6 +981,7 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
         m.keep_inlier_tracks();
         result.inliers = pose.inliers;
         result.rms_px = pose.rms_px;
+        m.pose_gyro_aided = m.gyro_prior_valid && m.gyro_sigma_deg > 0.0;
         ok = true;
       }
       t4 = m.now();

@@ -173,6 +173,9 @@ struct KeyframeMessage {
   bool segment_start = false;  //!< the first key-frame of its segment (holds its gauge)
   /// Its observations' noise [px]: 1, more when the camera was turning (motion blur).
   float observation_sigma_px = 1.0f;
+  /// Its rotation was tracked with the gyro's (a bias-corrected rate held the pose): the
+  /// mapper then trusts it more than a vision-only one (MapperConfig::keyframe_prior_deg_gyro).
+  bool gyro_aided = false;
   FixedVector<KeyframeObservation> observations;
   FixedVector<NewMapPoint> new_points;
   /// Map points the tracker gave up on since the last key-frame (rarely found where predicted).
