@@ -327,8 +327,9 @@ int Icm20948Sim::rdwr(i2c_rdwr_ioctl_data& data) {
   }
   if (fault == Fault::kNack) return finish(-ENXIO);
   if (fault == Fault::kEio) return finish(-EIO);  // before any byte: nothing changed
-  if (fault == Fault::kShortRead && (data.msgs[data.nmsgs - 1].flags & I2C_M_RD) == 0) {
-    faults_.push_front(*fault);  // a short read needs a read: keep it for the next one
+  if ((fault == Fault::kShortRead || fault == Fault::kEioMidRead) &&
+      (data.msgs[data.nmsgs - 1].flags & I2C_M_RD) == 0) {
+    faults_.push_front(*fault);  // a fault in a read needs a read: keep it for the next one
     fault.reset();
   }
 
@@ -347,13 +348,19 @@ int Icm20948Sim::rdwr(i2c_rdwr_ioctl_data& data) {
     i2c_msg& rd = data.msgs[next];
     if ((rd.flags & I2C_M_RD) == 0) return finish(-EINVAL);
     // A short read: the adapter stops after half the bytes (they are consumed on the chip).
-    const std::uint16_t len = fault == Fault::kShortRead ? rd.len / 2 : rd.len;
     const bool fifo = bank() == 0 && ptr == u8(Reg0::FIFO_R_W);
+    if (fault == Fault::kEioMidRead && !fifo) {
+      faults_.push_front(*fault);  // for the next FIFO burst
+      fault.reset();
+    }
+    const bool half = fault == Fault::kShortRead || fault == Fault::kEioMidRead;
+    const std::uint16_t len = half ? rd.len / 2 : rd.len;
     // FIFO_COUNTH latches the count for FIFO_COUNTL.
     for (std::uint16_t i = 0; i < len; ++i) {
       rd.buf[i] = read_reg(fifo ? ptr : static_cast<std::uint8_t>(ptr + i));
     }
     rd.len = len;
+    if (fault == Fault::kEioMidRead) return finish(-EIO);  // the bytes are gone from the chip
   }
   return finish(static_cast<int>(data.nmsgs));
 }

@@ -60,7 +60,10 @@ struct SimTraffic {
 
 class Icm20948Sim final : public drivers::I2cAdapter {
  public:
-  enum class Fault : std::uint8_t { kNack, kEio, kShortRead };
+  /// kEio fails before any byte moves; kShortRead completes half a read and says so;
+  /// kEioMidRead waits for the next read of FIFO_R_W, clocks half of it out of the FIFO and
+  /// then fails with EIO, as a bus error part-way through a burst does.
+  enum class Fault : std::uint8_t { kNack, kEio, kShortRead, kEioMidRead };
 
   explicit Icm20948Sim(std::uint16_t address = 0x68, SimTruthFn truth = {});
 

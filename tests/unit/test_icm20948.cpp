@@ -326,20 +326,44 @@ TEST(Icm20948Driver, NackWhileRunningIsCountedAndTheStreamGoesOn) {
   expect_stream_matches_chip(rig);
 }
 
-TEST(Icm20948Driver, EioIsRetriedByTheBusThenCountedByTheDriver) {
+TEST(Icm20948Driver, EioIsRetriedOnlyWhereTheReadCanBeRepeatedAndCountedByTheDriver) {
+  // Each poll reads the clear-on-read INT_STATUS_2 first: a bus error there is never retried
+  // (the flag may already be cleared), it is counted and the poll ends; the failure leaves the
+  // bank unknown, so the next poll starts with a bank select, a write the bus does retry.
   ImuRig rig(Icm20948::Config{}, motion);
   rig.run_until(100 * kNsPerMs);
   ASSERT_EQ(rig.driver.state(), ImuDriverState::kRun);
-  rig.sim.inject(Icm20948Sim::Fault::kEio, 2);  // two retries absorb it
+  rig.sim.inject(Icm20948Sim::Fault::kEio, 2);  // the status read, then the bank select
   rig.run_until(200 * kNsPerMs);
-  EXPECT_EQ(rig.driver.counters().bad_transfer, 0u);
-  EXPECT_EQ(rig.bus.counters().retries, 2u);
-  rig.sim.inject(Icm20948Sim::Fault::kEio, 3);  // one more than the retries
+  EXPECT_EQ(rig.driver.counters().bad_transfer, 1u);
+  EXPECT_EQ(rig.bus.counters().retries, 1u);
+  rig.sim.inject(Icm20948Sim::Fault::kEio, 3);  // status, bank select, and its first retry
   rig.run_until(400 * kNsPerMs);
   const ImuCounters& c = rig.driver.counters();
-  EXPECT_EQ(c.bad_transfer, 1u);
-  EXPECT_EQ(rig.bus.counters().retries, 4u);
+  EXPECT_EQ(c.bad_transfer, 2u);
+  EXPECT_EQ(rig.bus.counters().retries, 3u);
   EXPECT_EQ(c.resets, 0u);
+  EXPECT_EQ(rig.driver.state(), ImuDriverState::kRun);
+  expect_stream_matches_chip(rig);
+}
+
+TEST(Icm20948Driver, AFifoBurstThatFailsPartWayIsResynchronisedNotRetried) {
+  // A bus error half-way through a FIFO_R_W burst: the bytes clocked out before it are gone
+  // from the chip. Retried, the burst would read the bytes after them and push records cut at
+  // the wrong boundaries; the driver must count it, empty the FIFO and start over.
+  ImuRig rig(Icm20948::Config{}, motion);
+  rig.run_until(100 * kNsPerMs);
+  ASSERT_EQ(rig.driver.state(), ImuDriverState::kRun);
+  const std::uint64_t resync_before = rig.driver.counters().resync;
+  const std::uint64_t once_before = rig.bus.counters().once;
+  rig.sim.inject(Icm20948Sim::Fault::kEioMidRead, 1);
+  rig.run_until(400 * kNsPerMs);
+  const ImuCounters& c = rig.driver.counters();
+  EXPECT_EQ(rig.bus.counters().retries, 0u);
+  EXPECT_GT(rig.bus.counters().once, once_before);  // FIFO bursts go once
+  EXPECT_EQ(c.bad_transfer, 1u);
+  EXPECT_EQ(c.resync, resync_before + 1);
+  EXPECT_GT(c.dropped_samples, 0u);
   EXPECT_EQ(rig.driver.state(), ImuDriverState::kRun);
   expect_stream_matches_chip(rig);
 }

@@ -187,11 +187,21 @@ int I2cBus::attempt(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx
 std::size_t I2cBus::max_read_bytes() const { return adapter_.max_read_bytes(); }
 
 int I2cBus::transfer(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx) {
+  return transfer_with(tx, rx, options_.max_retries);
+}
+
+int I2cBus::transfer_once(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx) {
+  ++counters_.once;
+  return transfer_with(tx, rx, 0);
+}
+
+int I2cBus::transfer_with(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx,
+                          int retries) {
   ++counters_.transfers;
   if (tx.size() > 0xFFFF || rx.size() > 0xFFFF) return EINVAL;  // i2c_msg.len is 16 bits
   int err = attempt(tx, rx);
-  for (int retry = 0;
-       retry < options_.max_retries && (err == EIO || err == EAGAIN || err == ETIMEDOUT); ++retry) {
+  for (int retry = 0; retry < retries && (err == EIO || err == EAGAIN || err == ETIMEDOUT);
+       ++retry) {
     ++counters_.retries;
     err = attempt(tx, rx);
   }

@@ -209,8 +209,9 @@ Icm20948::Icm20948(I2cDevice& device, const Config& config, ImuSampleSink& sink)
 
 // ---- Bus helpers ---------------------------------------------------------------------------
 
-bool Icm20948::transfer(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx) {
-  const int err = device_.transfer(tx, rx);
+bool Icm20948::transfer(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx,
+                        bool repeatable) {
+  const int err = repeatable ? device_.transfer(tx, rx) : device_.transfer_once(tx, rx);
   if (err == 0) {
     if (failures_ > 0) --failures_;
     return true;
@@ -235,10 +236,10 @@ bool Icm20948::select_bank(Bank bank) {
   return true;
 }
 
-bool Icm20948::read(Bank bank, std::uint8_t reg, std::span<std::uint8_t> out) {
+bool Icm20948::read(Bank bank, std::uint8_t reg, std::span<std::uint8_t> out, bool repeatable) {
   if (!select_bank(bank)) return false;
   const std::array<std::uint8_t, 1> tx{reg};
-  return transfer(tx, out);
+  return transfer(tx, out, repeatable);
 }
 
 bool Icm20948::write(Bank bank, std::uint8_t reg, std::uint8_t value) {
@@ -488,7 +489,9 @@ TimeNs Icm20948::read_fifo(TimeNs now_ns, bool edge) {
   using namespace icm20948;  // NOLINT(google-build-using-namespace)
   std::array<std::uint8_t, 1> status{};
   std::array<std::uint8_t, 2> count_buf{};
-  if (!read(Bank::k0, u8(Reg0::INT_STATUS_2), status) ||
+  // INT_STATUS_2 clears on read: a failed read may have cleared the overflow flag already, so
+  // it is not retried (a FIFO that overflowed meanwhile still shows a full count below).
+  if (!read(Bank::k0, u8(Reg0::INT_STATUS_2), status, false) ||
       !read(Bank::k0, u8(Reg0::FIFO_COUNTH), count_buf)) {
     return now_ns;
   }
@@ -510,7 +513,8 @@ TimeNs Icm20948::read_fifo(TimeNs now_ns, bool edge) {
                                 : std::max<std::size_t>(max_read, 1);
   bool read_ok = select_bank(Bank::k0);
   for (std::size_t at = 0; read_ok && at < bytes.size(); at += chunk) {
-    read_ok = transfer(fifo_reg, bytes.subspan(at, std::min(chunk, bytes.size() - at)));
+    // Never retried: a burst that failed part-way has taken bytes the retry would not see.
+    read_ok = transfer(fifo_reg, bytes.subspan(at, std::min(chunk, bytes.size() - at)), false);
   }
   if (!read_ok) {
     // Some bytes may have left the FIFO: record boundaries are lost, start it over.

@@ -22,7 +22,8 @@
 ///   - ENXIO / EREMOTEIO: the device did not acknowledge (absent, unplugged, in reset). Not
 ///     retried: retrying a NACK only keeps the bus busy.
 ///   - EIO / EAGAIN / ETIMEDOUT: bus error, arbitration lost, clock stretching timeout. Retried
-///     up to Options::max_retries times.
+///     up to Options::max_retries times by transfer(); never by transfer_once() (a read that
+///     cannot be repeated: the failed attempt may already have taken bytes from a FIFO).
 ///   - EPROTO: a short transfer (the adapter completed fewer messages or bytes than asked);
 ///     the rx bytes are not to be trusted.
 ///   - anything else the kernel says, unchanged.
@@ -63,6 +64,11 @@ class I2cDevice {
   /// transaction with a repeated start between the two. Returns 0 or a positive errno; on
   /// error the content of rx is unspecified.
   virtual int transfer(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx) = 0;
+  /// The same transaction, attempted once, for reads that cannot be repeated: a FIFO's data
+  /// register hands out the next bytes on every read, a clear-on-read status clears. A failed
+  /// attempt may have moved bytes on the chip before the error, so it is never retried; the
+  /// caller resynchronises (empties the FIFO) instead.
+  virtual int transfer_once(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx) = 0;
   /// The most bytes one transfer() can read: an SMBus-only adapter carries 32 (an I2C block
   /// read), and a longer read fails with EOPNOTSUPP; a driver splits its bursts to fit.
   [[nodiscard]] virtual std::size_t max_read_bytes() const { return kI2cNoReadLimit; }
@@ -137,6 +143,7 @@ struct I2cBusCounters {
   std::uint64_t transfers = 0;   //!< transfer() calls
   std::uint64_t failures = 0;    //!< transfer() calls that returned an error
   std::uint64_t retries = 0;     //!< extra attempts after EIO / EAGAIN / ETIMEDOUT
+  std::uint64_t once = 0;        //!< transfer_once() calls (never retried)
   std::uint64_t eintr = 0;       //!< attempts interrupted by a signal (retried)
   std::uint64_t recoveries = 0;  //!< times the recovery hook was called
 };
@@ -162,6 +169,7 @@ class I2cBus final : public I2cDevice {
   I2cBus(I2cAdapter& adapter, std::uint16_t address) : I2cBus(adapter, address, Options{}) {}
 
   int transfer(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx) override;
+  int transfer_once(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx) override;
   /// The adapter's.
   [[nodiscard]] std::size_t max_read_bytes() const override;
 
@@ -170,6 +178,7 @@ class I2cBus final : public I2cDevice {
 
  private:
   int attempt(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx);
+  int transfer_with(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx, int retries);
 
   I2cAdapter& adapter_;
   std::uint16_t address_;

@@ -188,9 +188,13 @@ class Icm20948 final : public ImuDriver {
   bool check_failures(TimeNs now_ns);
 
   bool select_bank(icm20948::Bank bank);
-  bool read(icm20948::Bank bank, std::uint8_t reg, std::span<std::uint8_t> out);
+  /// repeatable = false for a register whose read changes the chip (FIFO_R_W, the
+  /// clear-on-read INT_STATUS_*): attempted once, never retried by the bus.
+  bool read(icm20948::Bank bank, std::uint8_t reg, std::span<std::uint8_t> out,
+            bool repeatable = true);
   bool write(icm20948::Bank bank, std::uint8_t reg, std::uint8_t value);
-  bool transfer(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx);
+  bool transfer(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx,
+                bool repeatable = true);
   bool write_entry(const ConfigEntry& e);
   bool entry_ok(const ConfigEntry& e, bool& ok);
   bool slv4(std::uint8_t addr, std::uint8_t reg, std::uint8_t dout);
