@@ -31,7 +31,7 @@ struct RunArgs {
   bool check = false;
   bool stats = false;
   bool no_view = false;
-  int view_every = 20;
+  int view_every = 0;  // no PNGs unless asked: on a headset they fill and wear the SD card
   bool deterministic = false;
   bool no_rt = false;
   int loops = -1;  // -1: the board's replay.loop
@@ -148,7 +148,7 @@ int run_run_command(const RunArgs& args) {
   options.mode =
       args.deterministic ? firmware::ApplianceMode::kLockStep : firmware::ApplianceMode::kRealTime;
   options.view = !args.no_view;
-  options.png_dir = fs::path(args.out) / "view";
+  if (args.view_every > 0) options.png_dir = fs::path(args.out) / "view";
   options.png_every = args.view_every;
   // Test tooling between the replay and the pipeline (firmware/hil), only when asked for.
   std::vector<firmware::hil::FaultSpec> faults;
@@ -247,9 +247,9 @@ void add_run_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_flag("--stats", args->stats,
                 "Print the table of threads and stages at the end (SIGUSR1: at any time)");
   cmd->add_flag("--no-view", args->no_view, "Do not draw the headset view");
-  cmd->add_option("--view-every", args->view_every, "Write every Nth drawn view as PNG")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
+  cmd->add_option("--view-every", args->view_every,
+                  "Write every Nth drawn view as PNG under OUT/view (default: none)")
+      ->check(CLI::PositiveNumber);
   cmd->add_flag("--deterministic", args->deterministic,
                 "Replay in lock step (no frame dropped, mapping and walls at fixed points): "
                 "the same poses and walls on every run");

@@ -102,7 +102,7 @@ PY
   ;;
 run_sim)
   # The appliance on the sim board at real time (the README's first command), JSON summary.
-  run run --board "$src/board/sim.yaml" --out "$tmp/out_dir" --json; expect_rc 0
+  run run --board "$src/board/sim.yaml" --out "$tmp/out_dir" --json --view-every 20; expect_rc 0
   [ "$(json "d['replay']['pairing']['pairs']")" = 40 ] || fail "pairs"
   [ "$(json "d['frames']['in']")" = 40 ] || fail "frames in"
   [ "$(json "d['imu']['dropped']")" = 0 ] || fail "IMU samples dropped"
@@ -143,6 +143,11 @@ PY
   run run --board "$src/board/sim.yaml" --out "$tmp/out2" --fast --no-view --stats; expect_rc 0
   expect_out "wall model (2-D"; expect_out "floor"; expect_out "thread       policy"
   expect_out "capture -> tracking"
+  # Without --view-every the view is drawn but no PNG is written (the unit's default on a
+  # headset: PNGs every few frames forever would fill and wear its SD card).
+  run run --board "$src/board/sim.yaml" --out "$tmp/out3" --fast --json; expect_rc 0
+  [ "$(json "d['frames']['in']")" = 40 ] || fail "frames in (no PNGs)"
+  [ ! -e "$tmp/out3/view" ] || fail "PNGs written without --view-every"
   run run --board "$src/board/rpi5.yaml" --check; expect_rc 0; expect_out "board rpi5"
   printf 'board: {name: x}\nsource: replay\nreplay: {recording: r, sped: 2}\n' >"$tmp/bad.yaml"
   run run --board "$tmp/bad.yaml" --check; expect_rc 2; one_err_line
