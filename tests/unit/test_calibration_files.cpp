@@ -116,6 +116,36 @@ cam1:
   EXPECT_NEAR(k.cams[0].T_body_cam.translation().x(), -0.0216401454975, 1e-5);
 }
 
+TEST(CalibrationFiles, AStereoOnlyFileSaysThatItDoesNotKnowWhereTheImuIs) {
+  // A stereo calibration (cam0 as the body) cannot tell an IMU's frame: the flag says so, and a
+  // live board with an IMU refuses it (cli.record_live). Kalibr's T_cam_imu, a EuRoC folder's
+  // T_BS or an explicit `imu_aligned_with_cam0: true` say where the IMU is.
+  const RigCalibration rig = sample_rig();
+  EXPECT_FALSE(
+      parse_rig_calibration(recording::format_kalibr_camchain(rig), "c.yaml").imu_extrinsic_known);
+  EXPECT_TRUE(parse_rig_calibration(recording::format_kalibr_camchain(rig, true), "c.yaml")
+                  .imu_extrinsic_known);
+  EXPECT_TRUE(
+      parse_rig_calibration(
+          "imu_aligned_with_cam0: true\n" + recording::format_kalibr_camchain(rig), "c.yaml")
+          .imu_extrinsic_known);
+  EXPECT_FALSE(
+      parse_rig_calibration(
+          "imu_aligned_with_cam0: false\n" + recording::format_kalibr_camchain(rig), "c.yaml")
+          .imu_extrinsic_known);
+  const std::string opencv = recording::format_opencv_stereo_yaml(rig);
+  EXPECT_FALSE(parse_rig_calibration(opencv, "s.yaml").imu_extrinsic_known);
+  EXPECT_TRUE(parse_rig_calibration(opencv + "imu_aligned_with_cam0: true\n", "s.yaml")
+                  .imu_extrinsic_known);
+  EXPECT_TRUE(recording::read_rig_calibration(bundled_recording()).imu_extrinsic_known);
+  EXPECT_THAT(input_error_of([&] {
+                (void)parse_rig_calibration(
+                    "imu_aligned_with_cam0: maybe\n" + recording::format_kalibr_camchain(rig),
+                    "c.yaml");
+              }),
+              ::testing::HasSubstr("c.yaml:1"));
+}
+
 TEST(CalibrationFiles, EurocFoldersAndBadFilesAreNamed) {
   const RigCalibration euroc = recording::read_rig_calibration(bundled_recording());
   EXPECT_EQ(euroc.cams[0].width_px, 752);

@@ -70,8 +70,15 @@ CameraCalibration kalibr_camera(const config::YamlNode& cam, int index) {
   return c;
 }
 
+// `imu_aligned_with_cam0: true` at the top of a calibration file: the IMU's axes are cam0's.
+bool imu_aligned_with_cam0(const config::YamlNode& root) {
+  const config::YamlNode* n = root.find("imu_aligned_with_cam0");
+  return n != nullptr && n->as_bool();
+}
+
 RigCalibration parse_kalibr(const config::YamlNode& root) {
   RigCalibration rig;
+  rig.imu_extrinsic_known = root.at("cam0").has("T_cam_imu") || imu_aligned_with_cam0(root);
   const config::YamlNode& c0 = root.at("cam0");
   const config::YamlNode& c1 = root.at("cam1");
   rig.cams[0] = kalibr_camera(c0, 0);
@@ -94,6 +101,7 @@ RigCalibration parse_kalibr(const config::YamlNode& root) {
 
 RigCalibration parse_opencv(const config::YamlNode& root) {
   RigCalibration rig;
+  rig.imu_extrinsic_known = imu_aligned_with_cam0(root);
   const int w = pixels(root.at("image_width"), root.at("image_width").as_double());
   const int h = pixels(root.at("image_height"), root.at("image_height").as_double());
   for (int i = 0; i < 2; ++i) {
@@ -212,6 +220,7 @@ RigCalibration read_rig_calibration(const fs::path& path) {
     }
     if (fs::is_regular_file(mav0 / "imu0" / "sensor.yaml", ec))
       rig.imu = read_imu_sensor_yaml(mav0 / "imu0" / "sensor.yaml");
+    rig.imu_extrinsic_known = true;  // EuRoC's body frame is the IMU's; T_BS places the cameras
     return rig;
   }
   std::ifstream in(path);

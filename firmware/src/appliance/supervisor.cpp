@@ -122,6 +122,12 @@ ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& op
     }
     rig = recording::read_rig_calibration(*board.calibration);
     rig_source = board.calibration->string();
+    if (board.imu.driver != "none" && !rig.imu_extrinsic_known) {
+      throw InputError(rig_source + ": no camera-IMU transform (cam0.T_cam_imu) for the board's " +
+                       board.imu.driver +
+                       ": its gravity and rates would be taken in cam0's axes; calibrate it "
+                       "(Kalibr camchain-imucam) or add 'imu_aligned_with_cam0: true'");
+    }
   }
   // Fixed priorities pace real time; a fast replay runs every thread as SCHED_OTHER.
   const bool realtime = options.realtime && !(replay && options.replay.rate <= 0.0);

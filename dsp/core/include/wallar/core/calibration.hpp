@@ -42,6 +42,11 @@ struct ImuCalibration {
 struct RigCalibration {
   std::array<CameraCalibration, 2> cams;
   ImuCalibration imu;
+  /// Where the IMU sits is known: the body frame is the IMU's by a camera-IMU calibration (a
+  /// EuRoC folder's T_BS, a Kalibr cam0.T_cam_imu), or the file says the IMU's axes are cam0's
+  /// (`imu_aligned_with_cam0: true`). False for a stereo-only calibration: the body is then
+  /// cam0, and an IMU's gravity and rates would be taken in cam0's axes without anyone saying so.
+  bool imu_extrinsic_known = false;
 
   /// T_left_right: right camera coordinates into the left camera.
   [[nodiscard]] SE3d T_cam0_cam1() const {

@@ -10,7 +10,8 @@
 /// Kalibr camchain YAML: cam0, cam1 with camera_model pinhole, intrinsics [fu, fv, pu, pv],
 ///   distortion_model radtan (or equidistant), distortion_coeffs, resolution [w, h], cam1's
 ///   T_cn_cnm1 (= T_cam1_cam0), and T_cam_imu when the IMU is calibrated too.
-/// Rigs read from files without an IMU use the left camera as the body frame.
+/// Rigs read from files without an IMU use the left camera as the body frame, and say so
+/// (RigCalibration::imu_extrinsic_known false) unless the file has `imu_aligned_with_cam0: true`.
 ///
 /// Threading: free functions.
 #pragma once

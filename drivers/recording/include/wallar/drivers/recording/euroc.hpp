@@ -68,7 +68,8 @@ struct EurocRecording {
   std::vector<GroundTruthState> ground_truth;  //!< empty when the recording has none
 
   [[nodiscard]] RigCalibration rig() const {
-    return RigCalibration{{cams[0].calib, cams[1].calib}, imu_calib};
+    // EuRoC's body frame is the IMU's: the cameras' T_BS place them against it.
+    return RigCalibration{{cams[0].calib, cams[1].calib}, imu_calib, true};
   }
 };
 
