@@ -78,9 +78,9 @@ bool imu_aligned_with_cam0(const config::YamlNode& root) {
 
 RigCalibration parse_kalibr(const config::YamlNode& root) {
   RigCalibration rig;
-  rig.imu_extrinsic_known = root.at("cam0").has("T_cam_imu") || imu_aligned_with_cam0(root);
   const config::YamlNode& c0 = root.at("cam0");
   const config::YamlNode& c1 = root.at("cam1");
+  rig.imu_extrinsic_known = c0.has("T_cam_imu") || imu_aligned_with_cam0(root);
   rig.cams[0] = kalibr_camera(c0, 0);
   rig.cams[1] = kalibr_camera(c1, 1);
   // Body: the IMU when cam0 is calibrated against it, else cam0.

@@ -140,8 +140,8 @@ class LinuxI2cAdapter final : public I2cAdapter, private SmbusPort {
 
 /// Per-bus counters (the driver keeps its own, per error class, on top).
 struct I2cBusCounters {
-  std::uint64_t transfers = 0;   //!< transfer() calls
-  std::uint64_t failures = 0;    //!< transfer() calls that returned an error
+  std::uint64_t transfers = 0;   //!< transfer() and transfer_once() calls
+  std::uint64_t failures = 0;    //!< those that returned an error
   std::uint64_t retries = 0;     //!< extra attempts after EIO / EAGAIN / ETIMEDOUT
   std::uint64_t once = 0;        //!< transfer_once() calls (never retried)
   std::uint64_t eintr = 0;       //!< attempts interrupted by a signal (retried)
