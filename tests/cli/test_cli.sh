@@ -507,7 +507,7 @@ record_live)
   # A stereo-only calibration on a board with an IMU: refused before any device opens, naming
   # the file and what is missing (it would put gravity in cam0's axes); accepted, up to the
   # first missing device, once the file says the IMU is aligned with cam0.
-  cat >"$tmp/stereo_only.yaml" <<'YAML'
+  cat >"$tmp/cal.yaml" <<'YAML'
 cam0: {intrinsics: [450, 450, 376, 240], distortion_coeffs: [0, 0, 0, 0], resolution: [752, 480]}
 cam1:
   intrinsics: [450, 450, 376, 240]
@@ -515,12 +515,11 @@ cam1:
   resolution: [752, 480]
   T_cn_cnm1: [[1, 0, 0, -0.11], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
 YAML
-  sed -e "s#^calibration:.*#calibration: $tmp/stereo_only.yaml#" "$src/board/rpi5.yaml" >"$tmp/noimu.yaml"
-  run run --board "$tmp/noimu.yaml" --out "$tmp/o" --no-rt; expect_rc 2; one_err_line
-  expect_err "stereo_only.yaml: no camera-IMU transform (cam0.T_cam_imu) for the board's icm20948"
-  { echo "imu_aligned_with_cam0: true"; cat "$tmp/stereo_only.yaml"; } >"$tmp/aligned.yaml"
-  sed -e "s#^calibration:.*#calibration: $tmp/aligned.yaml#" "$src/board/rpi5.yaml" >"$tmp/aligned_board.yaml"
-  run run --board "$tmp/aligned_board.yaml" --out "$tmp/o" --no-rt; expect_rc 1; one_err_line
+  sed -e "s#^calibration:.*#calibration: $tmp/cal.yaml#" "$src/board/rpi5.yaml" >"$tmp/cal_board.yaml"
+  run run --board "$tmp/cal_board.yaml" --out "$tmp/o" --no-rt; expect_rc 2; one_err_line
+  expect_err "cal.yaml: no camera-IMU transform (cam0.T_cam_imu) for the board's icm20948"
+  sed -i '1i imu_aligned_with_cam0: true' "$tmp/cal.yaml"
+  run run --board "$tmp/cal_board.yaml" --out "$tmp/o" --no-rt; expect_rc 1; one_err_line
   expect_err "cannot open"
   ;;
 calibrate_stereo)

@@ -467,14 +467,14 @@ TEST(MapperPriors, AGyroTrackedKeyframeIsTurnedLessByBiasedObservationsThanAVisi
   }
   SE3d T1 = SE3d::Identity();
   T1.linear() = Eigen::AngleAxisd(30.0 * M_PI / 180.0, Eigen::Vector3d::UnitY()).matrix();
+  std::vector<int> in_view0;  // within 18 deg of key-frame 0's axis
+  for (int i = 0; i < 150; ++i) {
+    const Eigen::Vector3d& p = pts[static_cast<std::size_t>(i)];
+    if (std::abs(std::atan2(p.x(), p.z())) < 18.0 * M_PI / 180.0) in_view0.push_back(i);
+  }
   const auto turn_deg = [&](bool gyro) {
     dsp::Mapper mapper(K);
     dsp::MapCorrection out(1000, 256);
-    std::vector<int> in_view0;  // within 18 deg of key-frame 0's axis
-    for (int i = 0; i < 150; ++i) {
-      const Eigen::Vector3d& p = pts[static_cast<std::size_t>(i)];
-      if (std::abs(std::atan2(p.x(), p.z())) < 18.0 * M_PI / 180.0) in_view0.push_back(i);
-    }
     dsp::KeyframeMessage m0(pts.size(), pts.size());
     m0.id = 0;
     m0.segment_start = true;

@@ -157,6 +157,8 @@ struct Tracker::Impl {
   bool pose_gyro_aided = false;  // this frame's pose was solved with the gyro's rotation prior
 
   std::int64_t now() const { return clock != nullptr ? clock() : 0; }
+  /// solve() holds the rotation near the gyro's this frame.
+  bool gyro_prior_active() const { return gyro_prior_valid && gyro_sigma_deg > 0.0; }
   KeyframeRecord* keyframe_by_id(std::int32_t id) {
     if (id < 0) return nullptr;
     for (KeyframeRecord& k : keyframes) {
@@ -498,7 +500,7 @@ int Tracker::Impl::add_stereo_points(bool& map_full) {
 PoseResult Tracker::Impl::solve(const SE3d& prior, bool ransac) {
   PoseParams params = config.pose;
   if (!ransac) params.ransac_iterations = 0;
-  if (gyro_prior_valid && gyro_sigma_deg > 0.0) {
+  if (gyro_prior_active()) {
     // Against observations of observation_sigma_px noise (the pixel terms count 1/sigma^2).
     const double sigma_rad = gyro_sigma_deg * M_PI / 180.0;
     params.rotation_prior_weight =
@@ -981,7 +983,7 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
         m.keep_inlier_tracks();
         result.inliers = pose.inliers;
         result.rms_px = pose.rms_px;
-        m.pose_gyro_aided = m.gyro_prior_valid && m.gyro_sigma_deg > 0.0;
+        m.pose_gyro_aided = m.gyro_prior_active();
         ok = true;
       }
       t4 = m.now();
