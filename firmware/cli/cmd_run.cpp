@@ -13,9 +13,11 @@
 #include "commands.hpp"
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/cloud/cloud_io.hpp"
+#include "wallar/drivers/devices/device_names.hpp"
 #include "wallar/drivers/recording/tum_trajectory.hpp"
 #include "wallar/firmware/appliance.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/board_devices.hpp"
 #include "wallar/firmware/hil/replay_plan.hpp"
 #include "wallar/firmware/offline.hpp"
 #include "wallar/firmware/report.hpp"
@@ -132,12 +134,31 @@ nlohmann::json to_json(const firmware::ApplianceReport& r, const firmware::RunOu
   return j;
 }
 
-int run_run_command(const RunArgs& args) {
-  const firmware::BoardConfig board = firmware::load_board(args.board);
-  if (args.check) {
-    std::cout << "board " << board.name << " (" << args.board << "): ok\n";
+// `--check`: the board file, its calibration and every device it names, found on this machine
+// without opening any (firmware/board_devices.hpp). What was found goes to stdout, each
+// problem to stderr as one line naming the key; exit 2 when the board contradicts itself or
+// its calibration, 1 when a device is missing.
+int run_check(const RunArgs& args, const firmware::BoardConfig& board) {
+  const firmware::BoardCheck check = firmware::check_board(board, drivers::DeviceTree());
+  std::cout << "board " << board.name << " (" << args.board << "):\n";
+  std::size_t width = 0;
+  for (const auto& f : check.found) width = std::max(width, f.key.size());
+  for (const auto& f : check.found) {
+    std::cout << "  " << f.key << std::string(width + 2 - f.key.size(), ' ') << f.found << "\n";
+  }
+  for (const auto& p : check.problems) {
+    std::cerr << "wallar: " << args.board << ": " << p.line << "\n";
+  }
+  if (check.ok()) {
+    std::cout << "board " << board.name << ": ok\n";
     return kExitOk;
   }
+  return check.any_bad_input() ? kExitBadInput : kExitFailure;
+}
+
+int run_run_command(const RunArgs& args) {
+  const firmware::BoardConfig board = firmware::load_board(args.board);
+  if (args.check) return run_check(args, board);
   firmware::ApplianceOptions options;
   source::ReplayOptions replay;
   replay.rate = board.replay.rate;
@@ -243,7 +264,10 @@ void add_run_command(CLI::App& app, std::function<int()>& run) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--out", args->out, "Folder for outputs")->capture_default_str();
   cmd->add_flag("--json", args->json, "Print the summary as JSON on stdout");
-  cmd->add_flag("--check", args->check, "Only check the board file and exit");
+  cmd->add_flag("--check", args->check,
+                "Check the board file, its calibration and every device it names (GPIO chips "
+                "by label, udev links) without opening them, and exit");
+
   cmd->add_flag("--stats", args->stats,
                 "Print the table of threads and stages at the end (SIGUSR1: at any time)");
   cmd->add_flag("--no-view", args->no_view, "Do not draw the headset view");

@@ -148,7 +148,12 @@ PY
   run run --board "$src/board/sim.yaml" --out "$tmp/out3" --fast --json; expect_rc 0
   [ "$(json "d['frames']['in']")" = 40 ] || fail "frames in (no PNGs)"
   [ ! -e "$tmp/out3/view" ] || fail "PNGs written without --view-every"
-  run run --board "$src/board/rpi5.yaml" --check; expect_rc 0; expect_out "board rpi5"
+  run run --board "$src/board/sim.yaml" --check; expect_rc 0; expect_out "board sim: ok"
+  expect_out "replay.recording"
+  # The Pi board on a machine that is not a Pi: its calibration file (exit 2) and each device.
+  run run --board "$src/board/rpi5.yaml" --check; expect_rc 2; expect_out "board rpi5"
+  expect_err "rpi5.yaml: calibration: /etc/wallar/calibration/camchain.yaml: no such file"
+  expect_err "rpi5.yaml: display.card: /dev/dri/by-path/platform-axi:gpu-card: no such device"
   printf 'board: {name: x}\nsource: replay\nreplay: {recording: r, sped: 2}\n' >"$tmp/bad.yaml"
   run run --board "$tmp/bad.yaml" --check; expect_rc 2; one_err_line
   expect_err "bad.yaml:3: unknown key 'replay.sped'"
@@ -505,22 +510,36 @@ record_live)
   one_err_line; expect_err "/etc/wallar/calibration/camchain.yaml"
   [ -e "$tmp/rec" ] && fail "a failed live recording left a folder"
   # A stereo-only calibration on a board with an IMU: refused before any device opens, naming
-  # the file and what is missing (it would put gravity in cam0's axes); accepted, up to the
-  # first missing device, once the file says the IMU is aligned with cam0.
+  # the file and what is missing (it would put gravity in cam0's axes), exit 2; each other
+  # problem (here every device of the Pi is missing) is one more line that names its key.
   cat >"$tmp/cal.yaml" <<'YAML'
-cam0: {intrinsics: [450, 450, 376, 240], distortion_coeffs: [0, 0, 0, 0], resolution: [752, 480]}
+cam0: {intrinsics: [450, 450, 320, 240], distortion_coeffs: [0, 0, 0, 0], resolution: [640, 480]}
 cam1:
-  intrinsics: [450, 450, 376, 240]
+  intrinsics: [450, 450, 320, 240]
   distortion_coeffs: [0, 0, 0, 0]
-  resolution: [752, 480]
+  resolution: [640, 480]
   T_cn_cnm1: [[1, 0, 0, -0.11], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
 YAML
   sed -e "s#^calibration:.*#calibration: $tmp/cal.yaml#" "$src/board/rpi5.yaml" >"$tmp/cal_board.yaml"
-  run run --board "$tmp/cal_board.yaml" --out "$tmp/o" --no-rt; expect_rc 2; one_err_line
-  expect_err "cal.yaml: no camera-IMU transform (cam0.T_cam_imu) for the board's icm20948"
+  run run --board "$tmp/cal_board.yaml" --out "$tmp/o" --no-rt; expect_rc 2
+  tail -n 1 "$tmp/err" | grep -qF "cal.yaml: no camera-IMU transform (cam0.T_cam_imu) for the board's icm20948" \
+    || fail "the last line is not the calibration's: $(cat "$tmp/err")"
+  expect_err "cal_board.yaml: cameras.left.device: /dev/v4l/by-path/platform-xhci-hcd.1-usb-0:1:1.0-video-index0: no such device"
+  expect_err "cal_board.yaml: imu.data_ready.chip: GPIO chip 'pinctrl-rp1'"
+  grep -vE "^wallar: (error: )?$tmp/cal_board.yaml: (cameras|imu|display|input|calibration)[.:]" "$tmp/err" \
+    | grep -q . && fail "a line without its board key: $(cat "$tmp/err")"
+  # Accepted once the file says the IMU is aligned with cam0: the first missing device, exit 1.
   sed -i '1i imu_aligned_with_cam0: true' "$tmp/cal.yaml"
-  run run --board "$tmp/cal_board.yaml" --out "$tmp/o" --no-rt; expect_rc 1; one_err_line
-  expect_err "cannot open"
+  run run --board "$tmp/cal_board.yaml" --out "$tmp/o" --no-rt; expect_rc 1
+  tail -n 1 "$tmp/err" | grep -qF "cameras.left.device: /dev/v4l/by-path/platform-xhci-hcd.1-usb-0:1:1.0-video-index0: no such device" \
+    || fail "the last line is not the first missing device: $(cat "$tmp/err")"
+  # --check finds the same without starting; a camera mode that is not the calibration's is the
+  # board file's fault: exit 2, the key named.
+  run run --board "$tmp/cal_board.yaml" --check; expect_rc 1; expect_out "cameras.left mode"
+  expect_err "cameras.right.device: /dev/v4l/by-path/platform-xhci-hcd.0-usb-0:1:1.0-video-index0: no such device"
+  sed -i 's/resolution: \[640, 480\]/resolution: [752, 480]/' "$tmp/cal.yaml"
+  run run --board "$tmp/cal_board.yaml" --check; expect_rc 2
+  expect_err "cal_board.yaml: cameras.left.width/height: 640x480 but $tmp/cal.yaml calibrates cam0 at 752x480"
   ;;
 calibrate_stereo)
   # OpenCV's 13 real chessboard pairs: the issue's targets, and every output file readable.

@@ -23,6 +23,7 @@
 #include "wallar/firmware/appliance/stats.hpp"
 #include "wallar/firmware/appliance/thread_table.hpp"
 #include "wallar/firmware/appliance/tracking_thread.hpp"
+#include "wallar/firmware/board_devices.hpp"
 #include "wallar/firmware/offline.hpp"
 #include "wallar/firmware/periodic.hpp"
 #include "wallar/firmware/rt_thread.hpp"
@@ -89,9 +90,11 @@ ApplianceReport run_over_recording(const recording::EurocRecording& rec, const B
 
 namespace {
 
-ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& options_in,
+ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions& options_in,
                             const std::atomic<bool>& stop, std::atomic<bool>* stats_request,
                             const recording::EurocRecording* given) {
+  // A live board's devices become what was found at start (GPIO chips by path).
+  BoardConfig board = board_in;
   ApplianceOptions options = options_in;
   if (!options.log) options.log = default_log;
   const bool replay = board.source == BoardConfig::Source::kReplay;
@@ -122,12 +125,13 @@ ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& op
     }
     rig = recording::read_rig_calibration(*board.calibration);
     rig_source = board.calibration->string();
-    if (board.imu.driver != "none" && !rig.imu_extrinsic_known) {
-      throw InputError(rig_source + ": no camera-IMU transform (cam0.T_cam_imu) for the board's " +
-                       board.imu.driver +
-                       ": its gravity and rates would be taken in cam0's axes; calibrate it "
-                       "(Kalibr camchain-imucam) or add 'imu_aligned_with_cam0: true'");
-    }
+    // The board against its calibration (camera modes, the camera-IMU transform), then every
+    // device by its stable name (GPIO chips by label, udev links), before anything opens:
+    // each failure one line naming the board file's key.
+    BoardCheck check;
+    check_rig(board_in, rig, rig_source, &check);
+    board = resolve_board_devices(board_in, drivers::DeviceTree(), &check);
+    throw_if_failed(board_in, check, options.log);
   }
   // Fixed priorities pace real time; a fast replay runs every thread as SCHED_OTHER.
   const bool realtime = options.realtime && !(replay && options.replay.rate <= 0.0);
