@@ -120,6 +120,7 @@ nlohmann::json to_json(const firmware::ApplianceReport& r, const firmware::RunOu
         {"drawn", r.view.view.frames},
         {"on_screen", r.view.view.on_screen},
         {"skipped", r.view.skipped},
+        {"frozen", r.view.frozen},
         {"written", r.view.view.written},
         {"losses", r.view.losses}}},
       {"threads", threads},
@@ -175,6 +176,7 @@ int run_run_command(const RunArgs& args) {
   std::vector<firmware::hil::FaultSpec> faults;
   for (const std::string& f : args.faults) faults.push_back(firmware::hil::parse_fault(f));
   options.before_frame = firmware::hil::tracking_hangs(faults);
+  options.before_draw = firmware::hil::render_hangs(faults);
   const int loops = args.loops >= 0 ? args.loops : static_cast<int>(board.replay.loops);
   if (loops != 1 || !faults.empty()) {
     options.replay_plan = firmware::hil::replay_plan(loops, std::move(faults));
@@ -286,7 +288,8 @@ void add_run_command(CLI::App& app, std::function<int()>& run) {
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--fault", args->faults,
                   "Inject a fault into the replayed streams (camera-stall@T+D, imu-unplug@T+D, "
-                  "corrupt-frame@T) or the tracking thread (tracking-hang@T+D); seconds from "
+                  "corrupt-frame@T), the tracking thread (tracking-hang@T+D) or the render thread "
+                  "(render-hang@T+D); seconds from "
                   "the start; repeatable");
   cmd->add_option("--method", args->method,
                   "Wall search score: ransac, msac, bsf (BSF-RANSAC) or binomial (B-RANSAC)")

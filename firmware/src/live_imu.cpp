@@ -86,6 +86,7 @@ void LiveImu::run(TimeNs until_ns, const std::atomic<bool>& stop) {
   std::optional<TimeNs> edge_ns;
   while (!stop.load(std::memory_order_relaxed)) {
     TimeNs now_ns = monotonic_now_ns();
+    heartbeat_.beat(now_ns);
     if (now_ns >= until_ns) return;
     const TimeNs wake_ns = std::min(driver.step(now_ns, edge_ns), until_ns);
     edge_ns.reset();

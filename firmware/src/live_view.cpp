@@ -10,8 +10,12 @@
 namespace wallar::firmware {
 
 LiveView::LiveView(const RigCalibration& rig, const HeadsetViewOptions& options, WallModel walls,
-                   double fps, TripleBuffer<WallModel>* live_walls, ThreadSpec spec)
-    : walls_(std::move(walls)), fps_(fps), live_walls_(live_walls) {
+                   double fps, TripleBuffer<WallModel>* live_walls, ThreadSpec spec,
+                   std::function<void(TimeNs)> before_draw)
+    : walls_(std::move(walls)),
+      fps_(fps),
+      live_walls_(live_walls),
+      before_draw_(std::move(before_draw)) {
   thread_ =
       std::make_unique<RtThread>(std::move(spec), [this, rig, options] { loop(rig, options); });
   // The display opens on the thread that will draw; wait for it to say how that went.
@@ -30,6 +34,7 @@ LiveView::~LiveView() {
 }
 
 void LiveView::post(ViewPost post) {
+  if (post.camera_lost) frozen_.fetch_add(1, std::memory_order_relaxed);
   mailbox_.post(std::move(post));
   posted_.fetch_add(1, std::memory_order_relaxed);
   wakeups_.fetch_add(1, std::memory_order_release);
@@ -43,6 +48,7 @@ LiveViewStats LiveView::stop() {
   if (thread_->joinable()) thread_->join();
   stats_.posted = posted_.load(std::memory_order_relaxed);
   stats_.skipped = mailbox_.overwritten();
+  stats_.frozen = frozen_.load(std::memory_order_relaxed);
   return stats_;
 }
 
@@ -110,11 +116,17 @@ void LiveView::loop(const RigCalibration& rig, const HeadsetViewOptions& options
       hud.tracking = dsp::to_string(post.state);
       hud.walls = static_cast<int>(walls->walls.size());
       hud.degraded = post.degraded != nullptr ? post.degraded : "";
-      const bool valid = post.state == dsp::TrackingState::kTracking;
+      hud.image_frozen = post.camera_lost;
+      const bool valid = post.state == dsp::TrackingState::kTracking && !post.camera_lost;
+      // Every draw but an output's first, which compiles the software rasteriser's shaders
+      // (seconds under emulation), is a job the supervisor watches.
+      if (view->stats().frames > 0) heartbeat_.begin(monotonic_now_ns());
+      if (before_draw_) before_draw_(monotonic_now_ns());
       const TimeNs t0 = monotonic_now_ns();
       const bool shown =
           view->show(post.frame, post.capture_t_ns, post.T_world_body, valid, walls, hud);
       const TimeNs t1 = monotonic_now_ns();
+      heartbeat_.end(t1);
       if (shown) {
         render_hist_.record(t1 - t0);
         if (post.capture_t_ns > 0) latency_hist_.record(t1 - post.capture_t_ns);

@@ -188,10 +188,41 @@ TEST(ApplianceHil, AHungTrackingThreadIsSeenAndItsRecoveryToo) {
   }
   EXPECT_EQ(stalled, 1) << testing::PrintToString(lines);
   EXPECT_EQ(alive, 1) << testing::PrintToString(lines);
+  for (const std::string& line : lines) {  // only the tracking thread was stalled
+    EXPECT_TRUE(line.find("stalled") == std::string::npos ||
+                line.find("tracking thread stalled") != std::string::npos)
+        << line;
+  }
   // It went on tracking after the hang (ended 3 s in): to the last loop's frames, in sensor
   // time (slow builds track fewer of them, the newest still).
   ASSERT_FALSE(r.trajectory.empty());
   EXPECT_GT(r.trajectory.back().t_ns - r.trajectory.front().t_ns, 4 * kNsPerS);
+}
+
+// A render thread stuck in a draw (the render-hang fault: 2.5 s, as a page flip that never
+// completes) withholds the watchdog too, and is said once when it is back: the watchdog means
+// the headset shows something, not only that tracking runs. Tracking meanwhile never waits for
+// the view.
+TEST(ApplianceHil, AHungRenderIsSeenAndItsRecoveryToo) {
+  const BoardConfig board = sim_board();
+  ApplianceOptions o = quiet_options();
+  std::vector<std::string> lines;
+  o.log = [&lines](const std::string& line) { lines.push_back(line); };
+  o.replay.rate = 1.0;
+  o.replay_plan = hil::replay_plan(3, {});  // 6 s: the hang, and drawing after it
+  o.before_draw = hil::render_hangs({hil::parse_fault("render-hang@0.5+2.5")});
+  const std::atomic<bool> stop{false};
+  const ApplianceReport r = run_appliance(board, o, stop);
+  std::vector<std::string> health;
+  for (const std::string& line : lines) {
+    if (line.find("stalled") != std::string::npos || line.find("alive again") != std::string::npos)
+      health.push_back(line);
+  }
+  ASSERT_EQ(health.size(), 2u) << testing::PrintToString(lines);
+  EXPECT_EQ(health[0], "render thread stalled (no progress for 2 s): watchdog withheld");
+  EXPECT_EQ(health[1], "render thread alive again");
+  EXPECT_GT(r.view.view.frames, 20u);  // it drew again after the hang
+  EXPECT_GT(r.frames_tracked, 80u);    // 120 frames in 6 s: tracking went on meanwhile
 }
 
 // (b) As fast as possible, deterministic: two runs give the same poses and walls, bit for bit.
@@ -251,6 +282,7 @@ TEST(ApplianceHil, RecoversFromInjectedFaults) {
   EXPECT_EQ(r.degraded.imu_lost, 1u);
   EXPECT_EQ(r.degraded.imu_recovered, 1u);
   EXPECT_GT(r.degraded.imu_only_poses, 3u);  // ~0.3 s of IMU-only orientation at the frame rate
+  EXPECT_EQ(r.view.frozen, r.degraded.imu_only_poses);  // each shown frozen, without walls
   EXPECT_EQ(r.events.size(), 4u) << testing::PrintToString(r.events);
   EXPECT_GT(r.degraded.faults_injected, 10u);
   EXPECT_EQ(r.stop_reason, "end of replay");
@@ -365,6 +397,7 @@ TEST(ApplianceHil, FaultSpecsParseAndBadOnesNameThemselves) {
   EXPECT_EQ(to_string(f), "camera-stall@1.5+0.25");
   EXPECT_EQ(to_string(parse_fault("corrupt-frame@2")), "corrupt-frame@2");
   EXPECT_EQ(to_string(parse_fault("tracking-hang@0.5+3")), "tracking-hang@0.5+3");
+  EXPECT_EQ(to_string(parse_fault("render-hang@2+1.5")), "render-hang@2+1.5");
   for (const char* bad : {"camera-stall", "camera-stall@x+1", "imu-unplug@1", "corrupt-frame@1+2",
                           "melt@1+1", "camera-stall@1+0", "imu-unplug@-1+1", "tracking-hang@1"}) {
     try {

@@ -132,6 +132,31 @@ TEST(HeadsetViewEuroc, TheFloorOverlayCoversTheFloorInTheImage) {
   EXPECT_GT(cv::countNonZero(lower), static_cast<int>(lower.total() * 3 / 10));
   const cv::Mat upper = overlay(cv::Rect(0, 0, w, h / 3));
   EXPECT_LT(cv::countNonZero(upper), static_cast<int>(upper.total() / 100));
+
+  // Camera lost (video see-through): the last image, frozen, is drawn dark red and the floor
+  // is not drawn over it, whatever the pose says.
+  display::HudState lost;
+  lost.image_frozen = true;
+  ASSERT_TRUE(view.show(pair, 0, T_world_body, true, &floor_only, lost));
+  const Image frozen_image = recording::load_png_rgb(view.stats().written_files[2]);
+  const cv::Mat f(frozen_image.height(), frozen_image.width(), CV_8UC3,
+                  const_cast<std::uint8_t*>(frozen_image.data()), frozen_image.stride_bytes());
+  const cv::Scalar live_mean = cv::mean(a(cv::Rect(0, 0, w, h)));
+  const cv::Scalar frozen_mean = cv::mean(f(cv::Rect(0, 0, w, h)));
+  EXPECT_NEAR(frozen_mean[0], 0.40 * live_mean[0], 2.0);  // R at 40 %
+  EXPECT_NEAR(frozen_mean[1], 0.08 * live_mean[1], 2.0);  // G and B at 8 %
+  EXPECT_NEAR(frozen_mean[2], 0.08 * live_mean[2], 2.0);
+  // Where the floor overlay was, the frozen image alone: no wall colour.
+  std::vector<cv::Mat> live_rgb, frozen_rgb;
+  cv::split(a(cv::Rect(0, 0, w, h)), live_rgb);
+  cv::split(f(cv::Rect(0, 0, w, h)), frozen_rgb);
+  cv::Mat expected_r;
+  live_rgb[0].convertTo(expected_r, CV_8U, 0.40);
+  cv::Mat off;
+  cv::absdiff(frozen_rgb[0], expected_r, off);
+  EXPECT_LT(cv::countNonZero((off > 3) & overlay),
+            static_cast<int>(cv::countNonZero(overlay) / 100))
+      << "the floor drawn over a frozen image";
 }
 
 // The visualization thread never holds the poster up: 60 frames posted back to back (much

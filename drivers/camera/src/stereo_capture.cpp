@@ -91,6 +91,7 @@ TimeNs StereoCapture::service_trigger(TimeNs now_ns) {
 
 void StereoCapture::run_once(DurationNs max_wait_ns) {
   TimeNs now = sys_.now_ns();
+  heartbeat_.beat(monotonic_now_ns());  // the supervisor's clock, not the system seam's
   const TimeNs trigger_deadline = service_trigger(now);
   TimeNs wake = std::min({deadline_ns_[0], deadline_ns_[1], trigger_deadline, now + max_wait_ns});
   std::array<pollfd, 2> fds{};

@@ -41,6 +41,7 @@ uniform vec2 u_image_size;  // [px]
 uniform vec4 u_K;           // fx fy cx cy
 uniform vec4 u_radtan;      // k1 k2 p1 p2
 uniform int u_undistort;
+uniform vec3 u_tint;        // (1, 1, 1); dark red for a frozen image
 in vec2 v_unit;
 out vec4 frag;
 void main() {
@@ -61,7 +62,7 @@ void main() {
     return;
   }
   float g = texture(u_image, tc).r;
-  frag = vec4(g, g, g, 1.0);
+  frag = vec4(g * u_tint, 1.0);
 }
 )";
 
@@ -416,6 +417,11 @@ struct HeadsetRenderer::Impl {
     glViewport(vp.x, output.height_px() - vp.y - vp.height, vp.width, vp.height);
   }
 
+  // Walls are drawn over a live image with a valid pose only.
+  static bool overlay(const HeadsetFrame& frame) {
+    return frame.pose_valid && !frame.hud.image_frozen;
+  }
+
   void draw_eye(int eye, const HeadsetFrame& frame) {
     const EyeInput& in = frame.eyes[static_cast<std::size_t>(eye)];
     const EyeCamera& cam = in.camera;
@@ -437,11 +443,17 @@ struct HeadsetRenderer::Impl {
                   static_cast<float>(cam.radtan[0]), static_cast<float>(cam.radtan[1]),
                   static_cast<float>(cam.radtan[2]), static_cast<float>(cam.radtan[3]));
       glUniform1i(glGetUniformLocation(camera_program, "u_undistort"), options.undistort ? 1 : 0);
+      // A frozen image (camera lost) at a third of its light, red: unmistakably not the world.
+      if (frame.hud.image_frozen) {
+        glUniform3f(glGetUniformLocation(camera_program, "u_tint"), 0.40f, 0.08f, 0.08f);
+      } else {
+        glUniform3f(glGetUniformLocation(camera_program, "u_tint"), 1.0f, 1.0f, 1.0f);
+      }
       glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
     }
     glEnable(GL_BLEND);
     glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
-    if (frame.pose_valid && !batches.empty() && cam.width_px > 0) {
+    if (overlay(frame) && !batches.empty() && cam.width_px > 0) {
       const Eigen::Matrix4d clip_from_world =
           clip_from_camera(cam, options.near_m, options.far_m) * in.T_world_cam.inverse().matrix();
       const Eigen::Matrix4f m = clip_from_world.cast<float>();
@@ -480,12 +492,17 @@ struct HeadsetRenderer::Impl {
     hud.setTo(cv::Scalar(0, 0, 0, 140));
     const HudState& h = frame.hud;
     char line[128];
-    std::snprintf(line, sizeof line, "%s  %.1f fps  %d wall%s",
-                  frame.pose_valid ? h.tracking.c_str() : "LOST", h.fps, h.walls,
-                  h.walls == 1 ? "" : "s");
+    if (h.image_frozen) {
+      std::snprintf(line, sizeof line, "CAMERA LOST: image frozen");
+    } else {
+      std::snprintf(line, sizeof line, "%s  %.1f fps  %d wall%s",
+                    frame.pose_valid ? h.tracking.c_str() : "LOST", h.fps, h.walls,
+                    h.walls == 1 ? "" : "s");
+    }
     hud_line.assign(line);
     cv::putText(hud, hud_line, cv::Point(12, 32), cv::FONT_HERSHEY_SIMPLEX, 0.8,
-                cv::Scalar(255, 255, 255, 255), 2, cv::LINE_AA);
+                h.image_frozen ? cv::Scalar(255, 60, 60, 255) : cv::Scalar(255, 255, 255, 255), 2,
+                cv::LINE_AA);
     if (!h.degraded.empty()) {
       std::snprintf(line, sizeof line, "DEGRADED: %s", h.degraded.c_str());
       hud_line.assign(line);
@@ -532,7 +549,7 @@ struct HeadsetRenderer::Impl {
     glClearColor(0.0f, 0.0f, 0.0f, 1.0f);
     glClear(GL_COLOR_BUFFER_BIT);
     for (int eye = 0; eye < 2; ++eye) upload_image(eye, frame.eyes[eye].image);
-    if (frame.walls != nullptr && frame.pose_valid) {
+    if (frame.walls != nullptr && overlay(frame)) {
       // Culled for the midpoint of the eyes: a wall seen edge-on is invisible to both.
       const Eigen::Vector3d viewer =
           0.5 * (frame.eyes[0].T_world_cam.translation() + frame.eyes[1].T_world_cam.translation());

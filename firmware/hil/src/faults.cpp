@@ -17,8 +17,8 @@ namespace wallar::firmware::hil {
 FaultSpec parse_fault(const std::string& text) {
   auto fail = [&](const char* why) -> FaultSpec {
     throw InputError("--fault '" + text + "': " + why +
-                     " (expected camera-stall@T+D, imu-unplug@T+D, corrupt-frame@T or "
-                     "tracking-hang@T+D, seconds)");
+                     " (expected camera-stall@T+D, imu-unplug@T+D, corrupt-frame@T, "
+                     "tracking-hang@T+D or render-hang@T+D, seconds)");
   };
   const std::size_t at = text.find('@');
   if (at == std::string::npos) return fail("no '@'");
@@ -32,6 +32,8 @@ FaultSpec parse_fault(const std::string& text) {
     f.kind = FaultSpec::Kind::kCorruptFrame;
   } else if (kind == "tracking-hang") {
     f.kind = FaultSpec::Kind::kTrackingHang;
+  } else if (kind == "render-hang") {
+    f.kind = FaultSpec::Kind::kRenderHang;
   } else {
     return fail("unknown fault");
   }
@@ -68,11 +70,19 @@ std::string to_string(const FaultSpec& fault) {
     case FaultSpec::Kind::kTrackingHang:
       std::snprintf(buf, sizeof buf, "tracking-hang@%g+%g", fault.at_s, fault.duration_s);
       break;
+    case FaultSpec::Kind::kRenderHang:
+      std::snprintf(buf, sizeof buf, "render-hang@%g+%g", fault.at_s, fault.duration_s);
+      break;
   }
   return buf;
 }
 
-std::function<void(TimeNs t_ns)> tracking_hangs(const std::vector<FaultSpec>& faults) {
+namespace {
+
+// The faults of one hang kind as a function that sleeps once at the first call at or after
+// each fault's time (from its first call).
+std::function<void(TimeNs t_ns)> hangs_of(const std::vector<FaultSpec>& faults,
+                                          FaultSpec::Kind kind) {
   struct Hang {
     DurationNs at_ns;
     DurationNs duration_ns;
@@ -80,11 +90,10 @@ std::function<void(TimeNs t_ns)> tracking_hangs(const std::vector<FaultSpec>& fa
   };
   std::vector<Hang> hangs;
   for (const FaultSpec& f : faults) {
-    if (f.kind == FaultSpec::Kind::kTrackingHang)
-      hangs.push_back({s_to_ns(f.at_s), s_to_ns(f.duration_s), false});
+    if (f.kind == kind) hangs.push_back({s_to_ns(f.at_s), s_to_ns(f.duration_s), false});
   }
   if (hangs.empty()) return {};
-  // Called on the tracking thread only: the state needs no lock.
+  // Called on one thread only: the state needs no lock.
   return [hangs = std::move(hangs), t0_ns = TimeNs{-1}](TimeNs t_ns) mutable {
     if (t0_ns < 0) t0_ns = t_ns;
     for (Hang& h : hangs) {
@@ -93,6 +102,16 @@ std::function<void(TimeNs t_ns)> tracking_hangs(const std::vector<FaultSpec>& fa
       std::this_thread::sleep_for(std::chrono::nanoseconds(h.duration_ns));
     }
   };
+}
+
+}  // namespace
+
+std::function<void(TimeNs t_ns)> tracking_hangs(const std::vector<FaultSpec>& faults) {
+  return hangs_of(faults, FaultSpec::Kind::kTrackingHang);
+}
+
+std::function<void(TimeNs now_ns)> render_hangs(const std::vector<FaultSpec>& faults) {
+  return hangs_of(faults, FaultSpec::Kind::kRenderHang);
 }
 
 FaultSink::FaultSink(source::SensorSink& next, std::vector<FaultSpec> faults)

@@ -52,6 +52,13 @@ std::vector<const RtThread*> LiveModule::threads() const {
   return t;
 }
 
+std::vector<std::pair<const char*, const Heartbeat*>> LiveModule::heartbeats() const {
+  std::vector<std::pair<const char*, const Heartbeat*>> out;
+  if (cameras_) out.emplace_back("capture", &cameras_->capture().heartbeat());
+  if (imu_) out.emplace_back("imu", &imu_->heartbeat());
+  return out;
+}
+
 std::vector<std::pair<std::string, std::string>> LiveModule::device_counters() const {
   std::vector<std::pair<std::string, std::string>> out;
   if (cameras_) {

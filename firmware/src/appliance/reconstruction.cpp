@@ -78,6 +78,7 @@ ReconstructionThread::ReconstructionThread(Reconstruction& reconstruction,
         MapPtr map;
         while (!stop.load(std::memory_order_acquire)) {
           timer_.wait();
+          heartbeat_.beat(monotonic_now_ns());
           wakeups_.fetch_add(1, std::memory_order_relaxed);
           if (maps.refresh()) map = maps.front();
           if (!map) continue;

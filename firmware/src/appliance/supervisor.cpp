@@ -40,7 +40,7 @@ void default_log(const std::string& line) { std::fprintf(stderr, "wallar: %s\n",
 // `hung_ns` meanwhile (a working tracker moves it at every wake-up and every frame done).
 bool wait_for_tracking(const RtThread& thread, const TrackingThread& tracker, DurationNs hung_ns) {
   while (!thread.finished()) {
-    if (monotonic_now_ns() - tracker.heartbeat_ns() > hung_ns) return false;
+    if (tracker.heartbeat().silent_ns(monotonic_now_ns()) > hung_ns) return false;
     const timespec ts{0, 5 * kNsPerMs};
     nanosleep(&ts, nullptr);
   }
@@ -195,7 +195,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
                           : WallModel{};
     view = std::make_unique<LiveView>(rig, vo, std::move(walls), rig.cams[0].rate_hz,
                                       options.view_walls ? nullptr : &walls_channel,
-                                      thread_spec("render", realtime));
+                                      thread_spec("render", realtime), options.before_draw);
     report.display = view->display();
     tracker->set_view(view.get());
   }
@@ -302,11 +302,31 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
     return stages;
   };
 
+  // Health: the watchdog is fed only while every fixed-rate thread and the display make
+  // progress. A render stuck in a page flip, a capture or imu thread stuck in a device call or
+  // a wall search that never returns withholds it as a hung tracker does, and the service
+  // manager restarts the appliance (WatchdogSec). Loops wake every 10-100 ms; a draw takes
+  // tens of ms; a wall search a few hundred.
+  struct Watched {
+    const char* name;
+    const Heartbeat* heartbeat;
+    DurationNs limit_ns;
+    bool stalled = false;
+  };
+  std::vector<Watched> watched;
+  watched.push_back({"tracking", &tracker->heartbeat(), 2 * kNsPerS});
+  for (const auto& [name, heartbeat] : source->heartbeats()) {
+    watched.push_back({name, heartbeat, 2 * kNsPerS});
+  }
+  if (reconstruct_thread) {
+    watched.push_back({"reconstruct", &reconstruct_thread->heartbeat(), 10 * kNsPerS});
+  }
+  if (view) watched.push_back({"render", &view->heartbeat(), 2 * kNsPerS});
+
   report.rss_kb.reserve(1 << 16);
   TimeNs next_rss_ns = t_start;
   PeriodicTimer supervisor(options.supervisor_period_ns);
   std::uint64_t supervisor_wakeups = 0;
-  bool tracking_stalled = false;
   std::string tracking_error;
   std::exception_ptr source_error;
   tl_allocation_counter = &supervisor_allocs;
@@ -360,16 +380,26 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
       std::fprintf(stderr, "%s", table.c_str());
       tl_allocation_counter = &supervisor_allocs;
     }
-    // Health: tracking wakes at least every 10 ms; two seconds of silence is a hang.
-    const bool stalled = now - tracker->heartbeat_ns() > 2 * kNsPerS;
-    if (stalled != tracking_stalled) {
-      tracking_stalled = stalled;
-      tl_allocation_counter = nullptr;
-      options.log(stalled ? "tracking thread stalled (no heartbeat for 2 s): watchdog withheld"
-                          : "tracking thread alive again");
-      tl_allocation_counter = &supervisor_allocs;
+    bool any_stalled = false;
+    for (Watched& w : watched) {
+      const bool stalled = w.heartbeat->silent_ns(now) > w.limit_ns;
+      if (stalled != w.stalled) {
+        w.stalled = stalled;
+        tl_allocation_counter = nullptr;  // a rare transition, said once
+        char line[128];
+        if (stalled) {
+          std::snprintf(line, sizeof line,
+                        "%s thread stalled (no progress for %g s): watchdog withheld", w.name,
+                        static_cast<double>(w.limit_ns) * 1e-9);
+        } else {
+          std::snprintf(line, sizeof line, "%s thread alive again", w.name);
+        }
+        options.log(line);
+        tl_allocation_counter = &supervisor_allocs;
+      }
+      any_stalled = any_stalled || stalled;
     }
-    if (!stalled && notifier.watchdog_due(now)) notifier.watchdog(now);
+    if (!any_stalled && notifier.watchdog_due(now)) notifier.watchdog(now);
   }
   tl_allocation_counter = nullptr;
   const bool supervisor_fifo = supervisor_priority && supervisor_priority->placement().fifo;

@@ -27,7 +27,7 @@ Image heap_copy(const Image& image) {
   return copy;
 }
 
-constexpr const char* kCameraLostHud = "camera lost: IMU orientation, walls kept";
+constexpr const char* kCameraLostHud = "no new images: walls hidden, map kept";
 constexpr const char* kImuLostHud = "IMU lost: 3-D wall search, no gyro prior";
 
 // The tracker's stage clock (dsp reads none itself): per-frame stage times for the records.
@@ -61,7 +61,7 @@ void TrackingThread::run(const std::atomic<bool>& stop, std::atomic<std::uint64_
   StereoFrame frame;
   while (!stop.load(std::memory_order_acquire)) {
     wakeup_.wait_for(10 * kNsPerMs);
-    heartbeat_ns_.store(monotonic_now_ns(), std::memory_order_relaxed);
+    heartbeat_.beat(monotonic_now_ns());
     wakeups_.fetch_add(1, std::memory_order_relaxed);
     if (reset_requested_.exchange(false)) do_reset();
     // Frames first, each after the IMU samples up to its time (they arrived before it); then
@@ -78,7 +78,7 @@ void TrackingThread::run(const std::atomic<bool>& stop, std::atomic<std::uint64_
       pipeline_.frame_done();
       // A frame done is progress too: a tracker slower than the camera never leaves this loop
       // (a new frame is always waiting), and must not read as hung (seen under emulation).
-      heartbeat_ns_.store(monotonic_now_ns(), std::memory_order_relaxed);
+      heartbeat_.beat(monotonic_now_ns());
     }
     drain_imu(std::numeric_limits<TimeNs>::max());
   }
@@ -172,6 +172,7 @@ void TrackingThread::publish_imu_only(TimeNs t_ns) {
     post.T_world_body = T;
     post.state = dsp::TrackingState::kTracking;
     post.degraded = kCameraLostHud;
+    post.camera_lost = true;  // drawn frozen: dark red, no walls over a still picture
     view_->post(std::move(post));
   }
 }

@@ -75,6 +75,9 @@ struct ApplianceOptions {
   /// Test tooling (firmware/hil's tracking-hang fault): called on the tracking thread before
   /// each frame, with the frame's time; empty in the product.
   std::function<void(TimeNs t_ns)> before_frame;
+  /// Test tooling (firmware/hil's render-hang fault): called on the render thread before each
+  /// draw, inside the draw's heartbeat; empty in the product.
+  std::function<void(TimeNs now_ns)> before_draw;
   DurationNs max_duration_ns = 0;  //!< > 0: stop after this much wall time
   bool view = true;                //!< draw the headset view (render thread)
   std::filesystem::path png_dir;   //!< write every `png_every`th drawn view here (empty: none)

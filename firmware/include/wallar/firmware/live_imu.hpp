@@ -16,6 +16,7 @@
 #include <memory>
 #include <string>
 
+#include "wallar/core/heartbeat.hpp"
 #include "wallar/drivers/imu/imu_driver.hpp"
 #include "wallar/firmware/board.hpp"
 
@@ -38,11 +39,15 @@ class LiveImu {
   [[nodiscard]] const drivers::ImuDriver& driver() const;
   /// "icm20948 on /dev/i2c-1 @0x68, data-ready gpiochip4:24" and the like.
   [[nodiscard]] const std::string& description() const { return description_; }
+  /// Beats at every wait-and-step (at least every 100 ms), any thread: an imu thread stuck in
+  /// a bus transfer reads as silent.
+  [[nodiscard]] const Heartbeat& heartbeat() const { return heartbeat_; }
 
  private:
   struct Parts;
   std::unique_ptr<Parts> parts_;
   std::string description_;
+  Heartbeat heartbeat_{Heartbeat::Kind::kLoop};
 };
 
 /// The tty of the first USB device with this VID:PID (serial IMUs on a USB-UART bridge).

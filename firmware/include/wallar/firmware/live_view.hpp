@@ -18,9 +18,11 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 
+#include "wallar/core/heartbeat.hpp"
 #include "wallar/core/mailbox.hpp"
 #include "wallar/core/stereo_frame.hpp"
 #include "wallar/core/triple_buffer.hpp"
@@ -37,12 +39,15 @@ struct ViewPost {
   SE3d T_world_body = SE3d::Identity();
   dsp::TrackingState state = dsp::TrackingState::kInitialising;
   const char* degraded = nullptr;  //!< a static string for the HUD's degraded line, or null
+  /// `frame` is the last one before the camera was lost: drawn frozen (dark red, no walls).
+  bool camera_lost = false;
 };
 
 struct LiveViewStats {
   HeadsetViewStats view;      //!< frames drawn, render times, latencies (every output opened)
   std::uint64_t posted = 0;   //!< frames the tracking side posted
   std::uint64_t skipped = 0;  //!< posted but overwritten before the renderer took them
+  std::uint64_t frozen = 0;   //!< posted with the camera lost (drawn frozen when drawn)
   std::uint64_t losses = 0;   //!< times the output failed
   std::uint64_t reopens = 0;  //!< times it was opened again
   std::string display;
@@ -53,9 +58,12 @@ class LiveView {
   /// Starts the thread, which opens the display; throws DisplayError (one line) if it cannot.
   /// `walls` is the model drawn, `fps` the HUD's camera rate. With `live_walls` (its one reader
   /// is this view's thread) the newest model published there replaces `walls` as it comes.
+  /// `before_draw` (tests: firmware/hil's render-hang fault) runs on the render thread before
+  /// each draw, inside the draw's heartbeat.
   LiveView(const RigCalibration& rig, const HeadsetViewOptions& options, WallModel walls,
            double fps, TripleBuffer<WallModel>* live_walls = nullptr,
-           ThreadSpec spec = {"render", 0, -1, 0});
+           ThreadSpec spec = {"render", 0, -1, 0},
+           std::function<void(TimeNs now_ns)> before_draw = {});
   ~LiveView();
   LiveView(const LiveView&) = delete;
   LiveView& operator=(const LiveView&) = delete;
@@ -74,6 +82,10 @@ class LiveView {
   /// The output's description (after construction).
   [[nodiscard]] const std::string& display() const { return display_; }
   [[nodiscard]] const RtThread* thread() const { return thread_.get(); }
+  /// A job per draw (until present returned; not an output's first draw, which compiles
+  /// shaders), any thread: a draw stuck in a page flip or a GPU call reads as silent; waiting
+  /// for frames (the camera lost) does not.
+  [[nodiscard]] const Heartbeat& heartbeat() const { return heartbeat_; }
 
  private:
   void loop(const RigCalibration& rig, const HeadsetViewOptions& options);
@@ -83,10 +95,13 @@ class LiveView {
   TripleBuffer<WallModel>* live_walls_;
   LatencyHistogram render_hist_, latency_hist_;
   std::atomic<std::uint64_t> misses_{0};
+  Heartbeat heartbeat_{Heartbeat::Kind::kJob};
+  std::function<void(TimeNs)> before_draw_;
   std::string display_;
   NewestMailbox<ViewPost> mailbox_;
   std::atomic<std::uint32_t> wakeups_{0};
   std::atomic<std::uint64_t> posted_{0};
+  std::atomic<std::uint64_t> frozen_{0};
   std::atomic<std::uint64_t> attempts_{0};
   std::atomic<bool> stop_{false};
   std::atomic<int> ready_{0};  // 0 starting, 1 running, -1 failed (error_ set)

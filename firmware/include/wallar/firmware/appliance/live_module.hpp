@@ -26,6 +26,7 @@ class LiveModule final : public SourceModule {
   bool join_within(DurationNs timeout_ns) override;
   [[nodiscard]] std::string describe() const override;
   [[nodiscard]] std::vector<const RtThread*> threads() const override;
+  [[nodiscard]] std::vector<std::pair<const char*, const Heartbeat*>> heartbeats() const override;
   [[nodiscard]] std::exception_ptr error() const override;
   [[nodiscard]] std::vector<std::pair<std::string, std::string>> device_counters() const override;
 

@@ -20,6 +20,7 @@
 #include <memory>
 #include <optional>
 
+#include "wallar/core/heartbeat.hpp"
 #include "wallar/core/seqlock.hpp"
 #include "wallar/core/triple_buffer.hpp"
 #include "wallar/dsp/tracking/mapper.hpp"
@@ -102,9 +103,12 @@ class ReconstructionThread {
   /// Periods missed (read after join).
   [[nodiscard]] std::uint64_t misses() const { return timer_.misses(); }
   [[nodiscard]] const std::atomic<std::uint64_t>& allocations() const { return allocations_; }
+  /// A loop: beats at each period, so a wall search that never returns reads as silent.
+  [[nodiscard]] const Heartbeat& heartbeat() const { return heartbeat_; }
 
  private:
   PeriodicTimer timer_;
+  Heartbeat heartbeat_{Heartbeat::Kind::kLoop, monotonic_now_ns()};
   std::atomic<std::uint64_t> wakeups_{0};
   std::atomic<std::uint64_t> allocations_{0};
   RtThread thread_;  // last: starts once the rest is built

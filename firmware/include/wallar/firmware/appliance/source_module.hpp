@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "wallar/core/calibration.hpp"
+#include "wallar/core/heartbeat.hpp"
 #include "wallar/core/time.hpp"
 #include "wallar/drivers/imu/imu_driver.hpp"
 #include "wallar/drivers/source/sensor_sink.hpp"
@@ -34,6 +35,12 @@ class SourceModule {
   virtual bool join_within(DurationNs timeout_ns) = 0;
   [[nodiscard]] virtual std::string describe() const = 0;
   [[nodiscard]] virtual std::vector<const RtThread*> threads() const = 0;
+  /// The source's device loops and their progress ({"capture", ...}, {"imu", ...}), for the
+  /// supervisor's health check; after start(). Empty for a replay: not a device, and a replay
+  /// that stops delivering shows as a lost camera.
+  [[nodiscard]] virtual std::vector<std::pair<const char*, const Heartbeat*>> heartbeats() const {
+    return {};
+  }
   /// The exception a source thread ended with (null if none), e.g. the replay's InputError for
   /// an image that cannot be read.
   [[nodiscard]] virtual std::exception_ptr error() const = 0;

@@ -27,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "wallar/core/heartbeat.hpp"
 #include "wallar/core/seqlock.hpp"
 #include "wallar/dsp/imu/attitude_filter.hpp"
 #include "wallar/firmware/appliance/pipeline_sink.hpp"
@@ -72,11 +73,9 @@ class TrackingThread {
 
   [[nodiscard]] TrackingAndMapping& system() { return system_; }
   [[nodiscard]] const TrackingAndMapping& system() const { return system_; }
-  /// When the thread last showed progress (a wake-up or a frame done), any thread: the
-  /// supervisor withholds the watchdog when it is over 2 s old.
-  [[nodiscard]] TimeNs heartbeat_ns() const {
-    return heartbeat_ns_.load(std::memory_order_relaxed);
-  }
+  /// The thread's progress (a wake-up or a frame done: a loop), any thread: the supervisor
+  /// withholds the watchdog while it is silent for over 2 s.
+  [[nodiscard]] const Heartbeat& heartbeat() const { return heartbeat_; }
   [[nodiscard]] std::uint64_t wakeups() const { return wakeups_.load(std::memory_order_relaxed); }
   [[nodiscard]] std::uint64_t misses() const { return misses_.load(std::memory_order_relaxed); }
   [[nodiscard]] const LatencyHistogram& queue_latency() const { return queue_; }
@@ -123,7 +122,7 @@ class TrackingThread {
   std::uint32_t epoch_ = 0;
   std::atomic<bool> reset_requested_{false};
 
-  std::atomic<TimeNs> heartbeat_ns_{0};
+  Heartbeat heartbeat_{Heartbeat::Kind::kLoop, monotonic_now_ns()};
   std::atomic<std::uint64_t> wakeups_{0};
   std::atomic<std::uint64_t> misses_{0};
   std::uint64_t tracked_ = 0;

@@ -26,6 +26,7 @@
 #include <functional>
 #include <optional>
 
+#include "wallar/core/heartbeat.hpp"
 #include "wallar/drivers/camera/v4l2_camera.hpp"
 #include "wallar/drivers/source/sensor_sink.hpp"
 #include "wallar/drivers/sync/stereo_pairer.hpp"
@@ -78,6 +79,9 @@ class StereoCapture final : private CameraListener {
   [[nodiscard]] const sync::PairingStats& pairing() const;
   [[nodiscard]] const StereoCaptureCounters& counters() const { return counters_; }
   [[nodiscard]] DurationNs tolerance_ns() const;
+  /// Beats at every run_once() (at least every 50 ms from run()), any thread: a capture thread
+  /// stuck in a device call reads as silent.
+  [[nodiscard]] const Heartbeat& heartbeat() const { return heartbeat_; }
 
  private:
   void on_frame(int cam, CameraFrame&& frame) override;
@@ -93,6 +97,7 @@ class StereoCapture final : private CameraListener {
   std::optional<sync::StereoPairer> pairer_;
   sync::PairingStats empty_stats_;
   StereoCaptureCounters counters_;
+  Heartbeat heartbeat_{Heartbeat::Kind::kLoop};
   TimeNs next_rise_ns_ = 0;
   TimeNs fall_ns_ = 0;  //!< 0 = line not asserted
   bool started_ = false;

@@ -48,6 +48,10 @@ struct HudState {
   double fps = 0.0;
   int walls = 0;
   std::string degraded;  //!< empty = nominal; e.g. "camera lost: IMU orientation only"
+  /// The camera is lost and the image is the last one it gave: drawn dark red with no overlay
+  /// and "CAMERA LOST" on the HUD, so nobody takes a still picture for the world (video
+  /// see-through) nor sees walls swim over it.
+  bool image_frozen = false;
 };
 
 struct HeadsetFrame {

@@ -5,7 +5,8 @@
 /// Test tooling, not part of the product's modules.
 ///
 /// Threading: parse_fault()/to_string() are pure; a FaultSink is called from the replay thread,
-/// injected() from any thread; tracking_hangs()'s function from the tracking thread only.
+/// injected() from any thread; tracking_hangs()'s function from the tracking thread only,
+/// render_hangs()'s from the render thread only.
 #pragma once
 
 #include <atomic>
@@ -21,13 +22,15 @@ namespace wallar::firmware::hil {
 /// A fault injected at a time of the (first) replay, in seconds from its first sample: into the
 /// sensor streams ("camera-stall@1.0+0.5", "imu-unplug@0.4+0.6", "corrupt-frame@1.2") or into
 /// the tracking thread, which then hangs before a frame ("tracking-hang@1.0+5": the supervisor
-/// sees no heartbeat and withholds the watchdog).
+/// sees no heartbeat and withholds the watchdog), or into the render thread, which hangs in a
+/// draw ("render-hang@1.0+5": as a page flip that never completes).
 struct FaultSpec {
   enum class Kind : std::uint8_t {
     kCameraStall,
     kImuUnplug,
     kCorruptFrame,
-    kTrackingHang
+    kTrackingHang,
+    kRenderHang
   } kind = Kind::kCameraStall;
   double at_s = 0.0;
   double duration_s = 0.0;  //!< stalls and unplugs; corrupt-frame hits one frame
@@ -40,6 +43,9 @@ std::string to_string(const FaultSpec& fault);
 /// after each fault's time (from the first frame) sleeps for its duration, once. Empty when
 /// there is none.
 std::function<void(TimeNs t_ns)> tracking_hangs(const std::vector<FaultSpec>& faults);
+/// The render-hang faults as ApplianceOptions::before_draw: the first draw at or after each
+/// fault's time (from the first draw, in CLOCK_MONOTONIC) sleeps for its duration, once.
+std::function<void(TimeNs now_ns)> render_hangs(const std::vector<FaultSpec>& faults);
 
 /// Withholds (camera stall, IMU unplug) or garbles (corrupt frame: noise of the right size)
 /// the samples the faults cover, and forwards the rest to `next`.
