@@ -34,19 +34,22 @@ TrackingAndMapping::TrackingAndMapping(const RigCalibration& rig, const Tracking
     : options_(options),
       tracker_(rig, options.tracker, clock),
       mapper_(std::make_unique<dsp::Mapper>(tracker_.intrinsics(), options.mapper)),
-      keyframes_(kKeyframeSlots,
-                 [&] {
-                   return dsp::KeyframeMessage(
-                       static_cast<std::size_t>(options.tracker.max_tracks +
-                                                options.tracker.keyframe_points),
-                       static_cast<std::size_t>(options.tracker.max_map_points));
-                 }),
-      corrections_(kCorrectionSlots,
-                   [&] {
-                     return dsp::MapCorrection(
-                         static_cast<std::size_t>(options.tracker.max_map_points),
-                         kMaxCorrectedKeyframes);
-                   }),
+      intrinsics_(tracker_.intrinsics()),
+      keyframes_(
+          kKeyframeSlots,
+          [&] {
+            return KeyframeSlot{
+                0, dsp::KeyframeMessage(static_cast<std::size_t>(options.tracker.max_tracks +
+                                                                 options.tracker.keyframe_points),
+                                        static_cast<std::size_t>(options.tracker.max_map_points))};
+          }),
+      corrections_(
+          kCorrectionSlots,
+          [&] {
+            return CorrectionSlot{
+                0, dsp::MapCorrection(static_cast<std::size_t>(options.tracker.max_map_points),
+                                      kMaxCorrectedKeyframes)};
+          }),
       lockstep_correction_(static_cast<std::size_t>(options.tracker.max_map_points),
                            kMaxCorrectedKeyframes),
       gyro_(static_cast<std::size_t>(std::max(16, options.imu_capacity))) {
@@ -62,20 +65,29 @@ void TrackingAndMapping::start_mapping() {
 
 TrackingAndMapping::~TrackingAndMapping() {
   stop_.store(true);
+  mapper_wakeup_.notify();
   if (thread_ && thread_->joinable()) thread_->join();
 }
 
 void TrackingAndMapping::reset() {
-  if (thread_ && thread_->joinable()) {
-    stop_.store(true);
-    thread_->join();  // from here this thread owns both ends of both rings
-  }
-  while (keyframes_.front() != nullptr) keyframes_.pop();
-  while (corrections_.front() != nullptr) corrections_.pop();
-  mapper_ = std::make_unique<dsp::Mapper>(tracker_.intrinsics(), options_.mapper);
   tracker_.reset();
   last_frame_t_ns_ = -1;
+  if (thread_ && thread_->joinable()) {
+    // A new epoch, asked of the mapping thread without waiting for it (it may be in a bundle
+    // adjustment for a while): it starts the new map when it next looks, and drops the old
+    // epoch's key-frames; its corrections still queued or still coming are dropped here.
+    ++epoch_;
+    reset_epoch_.store(epoch_, std::memory_order_release);
+    while (corrections_.front() != nullptr) corrections_.pop();
+    mapper_wakeup_.notify();
+    return;
+  }
   lockstep_since_global_ = 0;
+  new_map();
+}
+
+void TrackingAndMapping::new_map() {
+  mapper_ = std::make_unique<dsp::Mapper>(intrinsics_, options_.mapper);
   {
     const std::lock_guard<std::mutex> lock(map_mutex_);
     map_.reset();
@@ -84,7 +96,6 @@ void TrackingAndMapping::reset() {
     options_.map_channel->back() = nullptr;
     options_.map_channel->publish();
   }
-  if (options_.mapping_thread) start_mapping();
 }
 
 void TrackingAndMapping::on_imu(const ImuSample& sample) {
@@ -125,15 +136,20 @@ void TrackingAndMapping::set_gyro_bias(const Eigen::Vector3d& bias_rad_s) {
 dsp::TrackResult TrackingAndMapping::on_stereo(const StereoFrame& frame) {
   // Corrections from the mapping thread first: the pose then starts from the adjusted map.
   if (options_.mapping_thread) {
-    while (dsp::MapCorrection* c = corrections_.front()) {
-      tracker_.apply(*c);
+    bool freed = false;
+    while (CorrectionSlot* c = corrections_.front()) {
+      if (c->epoch == epoch_) {  // not the map before a reset
+        tracker_.apply(c->correction);
+        ++counters_.corrections_applied;
+      }
       corrections_.pop();
-      ++counters_.corrections_applied;
+      freed = true;
     }
+    if (freed) mapper_wakeup_.notify();  // it may wait for a free slot
   }
   const dsp::RotationPrior prior = gyro_prior(frame.t_ns);
   // A key-frame only when the mapper can take it: never one the map would not hear of.
-  dsp::KeyframeMessage* slot = options_.mapping_thread ? keyframes_.producer_slot() : nullptr;
+  KeyframeSlot* slot = options_.mapping_thread ? keyframes_.producer_slot() : nullptr;
   tracker_.set_keyframes_allowed(!options_.mapping_thread || slot != nullptr);
   const dsp::TrackResult result =
       tracker_.track(frame.t_ns, frame.left.image, frame.right.image, prior);
@@ -152,8 +168,10 @@ dsp::TrackResult TrackingAndMapping::on_stereo(const StereoFrame& frame) {
   if (const dsp::KeyframeMessage* kf = tracker_.pending_keyframe()) {
     ++counters_.keyframes;
     if (options_.mapping_thread) {
-      slot->copy_from(*kf);  // allowed above: the slot is there
+      slot->epoch = epoch_;
+      slot->message.copy_from(*kf);  // allowed above: the slot is there
       keyframes_.push();
+      mapper_wakeup_.notify();
     } else {
       map_keyframe(*kf, lockstep_correction_);
       tracker_.apply(lockstep_correction_);
@@ -215,50 +233,78 @@ void TrackingAndMapping::publish_map() {
 
 void TrackingAndMapping::mapping_loop() {
   int since_global = 0;
-  for (;;) {
-    if (dsp::KeyframeMessage* kf = keyframes_.front()) {
-      dsp::MapCorrection* out = nullptr;
-      while ((out = corrections_.producer_slot()) == nullptr && !stop_.load()) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));  // the tracker drains it
+  // Woken by a key-frame, a freed correction slot, a reset or the stop; the timeout is only a
+  // backstop.
+  constexpr DurationNs kBackstopNs = 200 * kNsPerMs;
+  while (!stop_.load(std::memory_order_acquire)) {
+    KeyframeSlot* kf = keyframes_.front();
+    // Asked before any key-frame of its epoch was pushed, so read after the key-frame: never
+    // older than the key-frame's epoch.
+    const std::uint32_t asked = reset_epoch_.load(std::memory_order_acquire);
+    if (asked != mapper_epoch_) {
+      mapper_epoch_ = asked;
+      since_global = 0;
+      new_map();
+    }
+    if (kf != nullptr) {
+      if (kf->epoch != mapper_epoch_) {  // the map before a reset
+        keyframes_.pop();
+        continue;
       }
-      if (out == nullptr) break;
-      map_keyframe(*kf, *out);
+      CorrectionSlot* out = corrections_.producer_slot();
+      if (out == nullptr) {  // the tracker has not taken the last ones yet
+        mapper_wakeup_.wait_for(kBackstopNs);
+        continue;
+      }
+      if (options_.before_mapping) options_.before_mapping();
+      map_keyframe(kf->message, out->correction);
+      out->epoch = mapper_epoch_;
       keyframes_.pop();
       corrections_.push();
       publish_map();
       ++since_global;
       continue;
     }
-    if (stop_.load()) break;
     if (global_due(since_global)) {
-      if (dsp::MapCorrection* out = corrections_.producer_slot()) {
-        global_adjust(*out);
+      if (CorrectionSlot* out = corrections_.producer_slot()) {
+        global_adjust(out->correction);
+        out->epoch = mapper_epoch_;
         corrections_.push();
         publish_map();
         since_global = 0;
         continue;
       }
     }
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    mapper_wakeup_.wait_for(kBackstopNs);
   }
 }
 
 std::shared_ptr<const dsp::MapSnapshot> TrackingAndMapping::finish() {
   if (thread_ && thread_->joinable()) {
     // Let the mapper take what is queued, then stop it. (front() is the consumer's: this
-    // thread is the producer, so it may only ask how full the ring is.)
+    // thread is the producer, so it may only ask how full the ring is.) Not the fixed-rate
+    // path: the end of a run.
     while (keyframes_.size_approx() != 0) {
-      while (dsp::MapCorrection* c = corrections_.front()) {
-        tracker_.apply(*c);
+      bool freed = false;
+      while (CorrectionSlot* c = corrections_.front()) {
+        if (c->epoch == epoch_) tracker_.apply(c->correction);
         corrections_.pop();
+        freed = true;
       }
+      if (freed) mapper_wakeup_.notify();
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
     stop_.store(true);
+    mapper_wakeup_.notify();
     thread_->join();
-    while (dsp::MapCorrection* c = corrections_.front()) {
-      tracker_.apply(*c);
+    while (CorrectionSlot* c = corrections_.front()) {
+      if (c->epoch == epoch_) tracker_.apply(c->correction);
       corrections_.pop();
+    }
+    // A reset the mapping thread had not seen yet (it was asleep, nothing queued).
+    if (mapper_epoch_ != epoch_) {
+      mapper_epoch_ = epoch_;
+      new_map();
     }
   }
   if (mapper_->keyframe_count() > 0) {

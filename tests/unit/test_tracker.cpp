@@ -521,6 +521,51 @@ TEST(TrackerEuroc, OnePairMakesAMap) {
   EXPECT_EQ(map->viewer_index.size(), map->points.size());  // one pair: one viewer each
 }
 
+// A reset on the tracking thread (SCHED_FIFO on a headset) never waits for the mapping thread,
+// which may be inside a bundle adjustment for a while: here one held 1 s. The old map's
+// key-frame is mapped meanwhile, and its correction is dropped, never applied to the new map;
+// the same mapping thread then maps the new one.
+TEST(TrackerEuroc, AResetNeverWaitsForTheMappingThreadAndDropsTheOldMapsCorrection) {
+  firmware::TrackingOptions options;
+  options.mapping_thread = true;
+  options.use_gyro = false;
+  std::atomic<int> mapped{0};
+  std::atomic<bool> in_first{false};
+  options.before_mapping = [&] {
+    if (mapped.fetch_add(1) == 0) {
+      in_first.store(true);
+      std::this_thread::sleep_for(std::chrono::seconds(1));
+    }
+  };
+  firmware::TrackingAndMapping system(euroc_still().rig(), options);
+  const firmware::RtThread* mapping = system.mapping_thread();
+  ASSERT_NE(mapping, nullptr);
+  ASSERT_TRUE(system.on_stereo(euroc_pair(0)).keyframe);
+  while (!in_first.load()) std::this_thread::yield();
+  const TimeNs t0 = monotonic_now_ns();
+  system.reset();
+  const DurationNs reset_ns = monotonic_now_ns() - t0;
+  EXPECT_LT(reset_ns, 100 * kNsPerMs) << "the reset waited for the mapping thread";
+  EXPECT_EQ(system.mapping_thread(), mapping);
+  EXPECT_FALSE(mapping->finished());
+  // The new map: its first key-frame, and frames until the old map's correction has come and
+  // gone (the mapping thread's second key-frame is the new map's).
+  ASSERT_TRUE(system.on_stereo(euroc_pair(1)).keyframe);
+  for (std::size_t i = 2; i < 40 && mapped.load() < 2; ++i) {
+    (void)system.on_stereo(euroc_pair(i % 10 + 1));
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_GE(mapped.load(), 2);
+  // Both key-frames were mapped; only the new map's correction was applied.
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  (void)system.on_stereo(euroc_pair(2));
+  EXPECT_EQ(system.counters().corrections_applied, 1u);
+  const auto map = system.finish();
+  ASSERT_TRUE(map != nullptr);
+  EXPECT_EQ(map->keyframe_centres.size(), 1u);  // the new map's key-frame alone
+  EXPECT_GT(map->points.size(), 150u);
+}
+
 // --- Bad input: blank and dark frames, repeats and gaps, wrong sizes -----------------------------
 
 TEST(TrackerBadInput, BlankStartDarkMiddleRepeatsAndGapsWrongSizes) {

@@ -265,16 +265,15 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   notifier.status("running");
 
   // Supervisor.
-  // `final`: after the tracking thread stopped (the mapping thread may be replaced by a reset
-  // while it runs, so only the final table lists it).
-  auto live_rows = [&](DurationNs run_ns, bool final) {
+  // The mapping thread lives from start to finish (a reset does not replace it).
+  auto live_rows = [&](DurationNs run_ns) {
     std::vector<ThreadRow> threads;
     for (const RtThread* t : source->threads()) {
       if (t != nullptr) threads.push_back(row_of(*t, run_ns, 0, 0, nullptr));
     }
     threads.push_back(
         row_of(tracking_thread, run_ns, tracker->wakeups(), tracker->misses(), &tracking_allocs));
-    if (const RtThread* m = final ? tracker->system().mapping_thread() : nullptr) {
+    if (const RtThread* m = tracker->system().mapping_thread()) {
       threads.push_back(row_of(*m, run_ns, 0, 0, nullptr));
     }
     if (reconstruct_thread) {
@@ -376,7 +375,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
     if (report.interrupted) break;
     if (stats_request != nullptr && stats_request->exchange(false)) {
       tl_allocation_counter = nullptr;  // a request, not the fixed-rate path
-      const std::string table = format_stats_table(live_rows(now - t_start, false), stage_rows());
+      const std::string table = format_stats_table(live_rows(now - t_start), stage_rows());
       std::fprintf(stderr, "%s", table.c_str());
       tl_allocation_counter = &supervisor_allocs;
     }
@@ -433,7 +432,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   tracking_thread.join();
   if (reconstruct_thread) reconstruct_thread->join();
   const DurationNs run_ns = monotonic_now_ns() - t_start;
-  report.threads = live_rows(run_ns, true);
+  report.threads = live_rows(run_ns);
   ThreadRow sup;
   sup.name = "supervisor";
   sup.policy = supervisor_fifo ? "FIFO " + std::to_string(thread_table_entry("supervisor").priority)

@@ -6,7 +6,11 @@
 ///
 /// Tracker -> mapper: key-frames through a lock-free SPSC ring of fixed-size slots (a full ring
 /// drops the key-frame and counts it; tracking never blocks). Mapper -> tracker: corrections
-/// through a second ring, applied at the start of the next frame. The mapper runs a local
+/// through a second ring, applied at the start of the next frame. The mapping thread sleeps on
+/// a Wakeup that the tracker notifies when it pushes a key-frame or frees a correction slot,
+/// and never polls. A reset never waits for it either: the tracker starts a new map epoch, and
+/// the mapping thread drops the old map, and every key-frame and correction of it, when it
+/// next wakes. The mapper runs a local
 /// bundle adjustment after each key-frame (and a global one every
 /// TrackingOptions::global_adjustment_keyframes, when set) and publishes a map snapshot after
 /// each; finish() ends with a global one.
@@ -20,6 +24,7 @@
 #pragma once
 
 #include <atomic>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -33,6 +38,7 @@
 #include "wallar/dsp/tracking/tracker.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/rt_thread.hpp"
+#include "wallar/firmware/wakeup.hpp"
 
 namespace wallar::firmware {
 
@@ -53,6 +59,9 @@ struct TrackingOptions {
   ThreadSpec mapping_thread_spec{"mapping", 0, -1, 0};
   /// Also publish each map here (one reader, e.g. the reconstruction thread); may be null.
   TripleBuffer<std::shared_ptr<const dsp::MapSnapshot>>* map_channel = nullptr;
+  /// Test tooling: called on the mapping thread before it maps each key-frame (a slow bundle
+  /// adjustment, to race a reset against); empty in the product.
+  std::function<void()> before_mapping;
 };
 
 /// The board file's tracking section as tracker and mapper settings.
@@ -89,9 +98,10 @@ class TrackingAndMapping {
   /// Stops the mapping thread after it has taken every key-frame, runs a global bundle
   /// adjustment and returns the final map.
   std::shared_ptr<const dsp::MapSnapshot> finish();
-  /// Forgets the map and the tracker's state (restarting the mapping thread); allocates.
+  /// Forgets the map and the tracker's state; allocates. With a mapping thread, never waits
+  /// for it (no join on the tracking thread): the mapping thread starts the new map itself.
   void reset();
-  /// The mapping thread (null in lock step).
+  /// The mapping thread (null in lock step); the same thread from start to finish().
   [[nodiscard]] const RtThread* mapping_thread() const { return thread_.get(); }
   /// The newest published map (null before the first key-frame was mapped).
   [[nodiscard]] std::shared_ptr<const dsp::MapSnapshot> latest_map() const;
@@ -102,7 +112,19 @@ class TrackingAndMapping {
   [[nodiscard]] std::vector<std::int64_t> mapping_times_ns() const;
 
  private:
+  // Ring slots carry the map epoch they belong to: after a reset the mapping thread drops the
+  // old epoch's key-frames and the tracker its corrections.
+  struct KeyframeSlot {
+    std::uint32_t epoch = 0;
+    dsp::KeyframeMessage message;
+  };
+  struct CorrectionSlot {
+    std::uint32_t epoch = 0;
+    dsp::MapCorrection correction;
+  };
+
   void mapping_loop();
+  void new_map();  //!< the mapper's side of a reset: a fresh mapper, no map published
   void map_keyframe(const dsp::KeyframeMessage& message, dsp::MapCorrection& out);
   void publish_map();
   void note(const dsp::MapperStats& stats);  //!< mapping side: counters after an adjustment
@@ -117,9 +139,14 @@ class TrackingAndMapping {
   SE3d T_rect_imu_ = SE3d::Identity();
   std::int64_t timeshift_cam_imu_ns_ = 0;  //!< t_imu = t_cam + this
   Eigen::Vector3d gyro_bias_rad_s_ = Eigen::Vector3d::Zero();
-  bool gyro_bias_known_ = false;  //!< set_gyro_bias() was called
-  SpscRing<dsp::KeyframeMessage> keyframes_;
-  SpscRing<dsp::MapCorrection> corrections_;
+  bool gyro_bias_known_ = false;      //!< set_gyro_bias() was called
+  dsp::StereoIntrinsics intrinsics_;  //!< the tracker's, for new mappers on either thread
+  SpscRing<KeyframeSlot> keyframes_;
+  SpscRing<CorrectionSlot> corrections_;
+  std::uint32_t epoch_ = 0;                    //!< tracking side: the map epoch (one per reset)
+  std::atomic<std::uint32_t> reset_epoch_{0};  //!< tracking -> mapping: the epoch asked for
+  std::uint32_t mapper_epoch_ = 0;             //!< mapping side: the mapper's epoch
+  Wakeup mapper_wakeup_;  //!< a key-frame pushed, a correction slot freed, a reset, the stop
   dsp::MapCorrection lockstep_correction_;
   int lockstep_since_global_ = 0;  //!< key-frames mapped in lock step since a global adjustment
   std::vector<ImuSample> gyro_;    // ring, sized once
