@@ -115,7 +115,8 @@ run_sim)
   [ -s "$tmp/out_dir/view/view_000000.png" ] || fail "no view PNG"
   python3 -c "import struct,sys; b=open('$tmp/out_dir/view/view_000000.png','rb').read(24); sys.exit(0 if struct.unpack('>II', b[16:24]) == (1280, 720) else 1)" || fail "view size"
   # Heap allocations on the fixed-rate threads after start-up: none (counted by the wallar
-  # binary's operator new; null in sanitizer builds, which keep their own).
+  # binary's malloc family, which operator new, Eigen and OpenCV use; null in sanitizer builds,
+  # which keep their own).
   python3 - "$tmp/out" <<'PY' || fail "allocations on fixed-rate threads"
 import json, sys
 d = json.load(open(sys.argv[1]))

@@ -9,8 +9,10 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <cstdlib>
 #include <new>
+#include <opencv2/core.hpp>
 
 #include "bno055_rig.hpp"
 #include "fake_v4l2.hpp"
@@ -44,14 +46,61 @@ class AllocationCounter {
 bool short_run() { return std::getenv("WALLAR_SHORT_TESTS") != nullptr; }
 }  // namespace
 
-void* operator new(std::size_t size) {
+// The C allocator itself is counted (malloc, calloc, realloc, the aligned ones), not only
+// operator new: Eigen's dynamic matrices and OpenCV's cv::Mat (fastMalloc: posix_memalign)
+// allocate through it and were invisible to an operator-new counter. glibc's own entry points
+// (__libc_*) do the work. Sanitizer builds keep their interceptors.
+#if !defined(WALLAR_SANITIZED)
+extern "C" {
+void* __libc_malloc(std::size_t size);
+void* __libc_calloc(std::size_t n, std::size_t size);
+void* __libc_realloc(void* p, std::size_t size);
+void* __libc_memalign(std::size_t alignment, std::size_t size);
+
+void* malloc(std::size_t size) noexcept {
   if (g_counting) ++g_allocations;
+  return __libc_malloc(size);
+}
+void* calloc(std::size_t n, std::size_t size) noexcept {
+  if (g_counting) ++g_allocations;
+  return __libc_calloc(n, size);
+}
+void* realloc(void* p, std::size_t size) noexcept {
+  if (g_counting) ++g_allocations;
+  return __libc_realloc(p, size);
+}
+void* aligned_alloc(std::size_t alignment, std::size_t size) noexcept {
+  if (g_counting) ++g_allocations;
+  return __libc_memalign(alignment, size);
+}
+void* memalign(std::size_t alignment, std::size_t size) noexcept {
+  if (g_counting) ++g_allocations;
+  return __libc_memalign(alignment, size);
+}
+int posix_memalign(void** out, std::size_t alignment, std::size_t size) noexcept {
+  if (alignment % sizeof(void*) != 0 || (alignment & (alignment - 1)) != 0) return EINVAL;
+  if (g_counting) ++g_allocations;
+  void* p = __libc_memalign(alignment, size);
+  if (p == nullptr) return ENOMEM;
+  *out = p;
+  return 0;
+}
+}
+#define WALLAR_COUNTS_MALLOC 1
+#endif
+
+void* operator new(std::size_t size) {
+#if !defined(WALLAR_COUNTS_MALLOC)
+  if (g_counting) ++g_allocations;
+#endif
   if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
   throw std::bad_alloc();
 }
 void* operator new[](std::size_t size) { return operator new(size); }
 void* operator new(std::size_t size, std::align_val_t al) {
+#if !defined(WALLAR_COUNTS_MALLOC)
   if (g_counting) ++g_allocations;
+#endif
   const auto a = static_cast<std::size_t>(al);
   if (void* p = std::aligned_alloc(a, (size + a - 1) / a * a)) return p;
   throw std::bad_alloc();
@@ -75,6 +124,21 @@ TEST(Allocations, TheCounterSeesAllocations) {
   delete v;
   EXPECT_EQ(counter.count(), 2u);  // the vector and its buffer: the counter works
 }
+
+#if defined(WALLAR_COUNTS_MALLOC)
+// Eigen's dynamic matrices and OpenCV's images allocate through the C allocator.
+TEST(Allocations, TheCounterSeesTheCAllocatorsToo) {
+  AllocationCounter counter;
+  void* p = std::malloc(16);
+  std::free(p);
+  EXPECT_EQ(counter.count(), 1u);
+  Eigen::MatrixXd m(40, 40);  // Eigen's aligned malloc
+  m.setZero();
+  EXPECT_EQ(counter.count(), 2u);
+  cv::Mat image(48, 64, CV_8UC1);  // fastMalloc (posix_memalign) and its header
+  EXPECT_GE(counter.count(), 3u);
+}
+#endif
 
 TEST(Allocations, WallDetectionAllocatesNothingAfterSetup) {
   const auto map = make_sparse_map({});

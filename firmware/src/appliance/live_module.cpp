@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <limits>
 
+#include "wallar/firmware/appliance/allocation_count.hpp"
 #include "wallar/firmware/appliance/thread_table.hpp"
 
 namespace wallar::firmware {
@@ -17,12 +18,16 @@ void LiveModule::start(source::SensorSink& sink, drivers::ImuSampleSink& imu_sin
   if (board_.imu.driver != "none") imu_ = std::make_unique<LiveImu>(board_, imu_sink);
   capture_ = std::make_unique<RtThread>(thread_spec("capture", realtime), [this, &stop] {
     const SetOnExit done(capture_done_);
+    tl_allocation_counter = &capture_allocs_;  // the devices are open: none from here on
     cameras_->run(std::numeric_limits<TimeNs>::max(), stop);
+    tl_allocation_counter = nullptr;
   });
   if (imu_) {
     imu_thread_ = std::make_unique<RtThread>(thread_spec("imu", realtime), [this, &stop] {
       const SetOnExit done(imu_done_);
+      tl_allocation_counter = &imu_allocs_;
       imu_->run(std::numeric_limits<TimeNs>::max(), stop);
+      tl_allocation_counter = nullptr;
     });
   } else {
     imu_done_.store(true);
@@ -50,6 +55,12 @@ std::vector<const RtThread*> LiveModule::threads() const {
   std::vector<const RtThread*> t{capture_.get()};
   if (imu_thread_) t.push_back(imu_thread_.get());
   return t;
+}
+
+const std::atomic<std::uint64_t>* LiveModule::allocations_of(const RtThread* thread) const {
+  if (thread != nullptr && thread == capture_.get()) return &capture_allocs_;
+  if (thread != nullptr && thread == imu_thread_.get()) return &imu_allocs_;
+  return nullptr;
 }
 
 std::vector<std::pair<const char*, const Heartbeat*>> LiveModule::heartbeats() const {

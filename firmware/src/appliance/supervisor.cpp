@@ -269,7 +269,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   auto live_rows = [&](DurationNs run_ns) {
     std::vector<ThreadRow> threads;
     for (const RtThread* t : source->threads()) {
-      if (t != nullptr) threads.push_back(row_of(*t, run_ns, 0, 0, nullptr));
+      if (t != nullptr) threads.push_back(row_of(*t, run_ns, 0, 0, source->allocations_of(t)));
     }
     threads.push_back(
         row_of(tracking_thread, run_ns, tracker->wakeups(), tracker->misses(), &tracking_allocs));

@@ -26,6 +26,8 @@ class LiveModule final : public SourceModule {
   bool join_within(DurationNs timeout_ns) override;
   [[nodiscard]] std::string describe() const override;
   [[nodiscard]] std::vector<const RtThread*> threads() const override;
+  [[nodiscard]] const std::atomic<std::uint64_t>* allocations_of(
+      const RtThread* thread) const override;
   [[nodiscard]] std::vector<std::pair<const char*, const Heartbeat*>> heartbeats() const override;
   [[nodiscard]] std::exception_ptr error() const override;
   [[nodiscard]] std::vector<std::pair<std::string, std::string>> device_counters() const override;
@@ -35,6 +37,7 @@ class LiveModule final : public SourceModule {
   std::unique_ptr<LiveStereo> cameras_;
   std::unique_ptr<LiveImu> imu_;
   std::unique_ptr<RtThread> capture_, imu_thread_;
+  std::atomic<std::uint64_t> capture_allocs_{0}, imu_allocs_{0};  // after the devices opened
   std::atomic<bool> capture_done_{false}, imu_done_{false};
 };
 

@@ -35,6 +35,12 @@ class SourceModule {
   virtual bool join_within(DurationNs timeout_ns) = 0;
   [[nodiscard]] virtual std::string describe() const = 0;
   [[nodiscard]] virtual std::vector<const RtThread*> threads() const = 0;
+  /// Allocations one of threads() made after its start-up (null: not counted; a replay decodes
+  /// images, it is not a device path).
+  [[nodiscard]] virtual const std::atomic<std::uint64_t>* allocations_of(
+      const RtThread* /*thread*/) const {
+    return nullptr;
+  }
   /// The source's device loops and their progress ({"capture", ...}, {"imu", ...}), for the
   /// supervisor's health check; after start(). Empty for a replay: not a device, and a replay
   /// that stops delivering shows as a lost camera.
