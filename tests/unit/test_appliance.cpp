@@ -225,6 +225,26 @@ TEST(ApplianceHil, AHungRenderIsSeenAndItsRecoveryToo) {
   EXPECT_GT(r.frames_tracked, 80u);    // 120 frames in 6 s: tracking went on meanwhile
 }
 
+// The board's threads: section places the appliance's threads (here tracking pinned to CPU 1,
+// which every machine running the tests has; the CI machine has 2).
+TEST(ApplianceHil, TheBoardPlacesItsThreads) {
+  BoardConfig board = sim_board();
+  board.threads.push_back({"tracking", std::nullopt, 1});
+  ApplianceOptions o = quiet_options();
+  o.view = false;
+  o.replay.rate = 0.0;
+  o.mode = ApplianceMode::kLockStep;
+  const std::atomic<bool> stop{false};
+  const ApplianceReport r = run_appliance(board, o, stop);
+  int tracking_cpu = -2, replay_cpu = -2;
+  for (const ThreadRow& t : r.threads) {
+    if (t.name == "tracking") tracking_cpu = t.cpu;
+    if (t.name == "replay") replay_cpu = t.cpu;
+  }
+  EXPECT_EQ(tracking_cpu, 1);
+  EXPECT_EQ(replay_cpu, -1);  // the table's: not pinned
+}
+
 // (b) As fast as possible, deterministic: two runs give the same poses and walls, bit for bit.
 TEST(ApplianceHil, FastDeterministicReplayIsBitIdenticalAcrossRuns) {
   const BoardConfig board = sim_board();

@@ -5,6 +5,7 @@
 
 #include "test_support.hpp"
 #include "wallar/drivers/config/yaml.hpp"
+#include "wallar/firmware/appliance/thread_table.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/live_stereo.hpp"
 #include "wallar/firmware/tracking_and_mapping.hpp"
@@ -194,6 +195,46 @@ TEST(Board, TrackingCapacitiesAreReadAndChecked) {
   std::string typo = text;
   typo.replace(typo.find("max_tracks"), 10, "max_track ");
   EXPECT_THAT(board_error(typo), HasSubstr("b.yaml:12: unknown key 'tracking.max_track'"));
+}
+
+// threads: the board places the thread table's threads (priority, CPU); a name the table does
+// not have, or a value out of range, is named with its line. Every table name is a board key.
+TEST(Board, ThreadPlacementsAreReadCheckedAndApplied) {
+  const std::string text = std::string(kLiveBoard) +
+                           "threads:\n  tracking: {cpu: 2}\n  capture: {priority: 72, cpu: -1}\n";
+  const auto b = parse_board(text, "b.yaml", ".");
+  ASSERT_EQ(b.threads.size(), 2u);
+  const firmware::ThreadSpec tracking = firmware::thread_spec("tracking", true, &b);
+  EXPECT_EQ(tracking.cpu, 2);
+  EXPECT_EQ(tracking.priority, 60);  // the table's
+  const firmware::ThreadSpec capture = firmware::thread_spec("capture", true, &b);
+  EXPECT_EQ(capture.priority, 72);
+  EXPECT_EQ(capture.cpu, -1);
+  EXPECT_EQ(firmware::thread_spec("capture", false, &b).priority, 0);  // not in real time
+  EXPECT_EQ(firmware::thread_spec("mapping", true, &b).cpu, -1);       // untouched
+  // The Pi board keeps tracking and bundle adjustment off CPU 0 (the USB interrupts).
+  const auto pi = firmware::load_board(fs::path(WALLAR_SOURCE_DIR) / "board" / "rpi5.yaml");
+  EXPECT_EQ(firmware::thread_spec("tracking", true, &pi).cpu, 2);
+  EXPECT_EQ(firmware::thread_spec("mapping", true, &pi).cpu, 3);
+
+  std::string unknown = text;
+  unknown.replace(unknown.find("tracking: {"), 8, "trackin ");
+  EXPECT_THAT(board_error(unknown), HasSubstr("unknown key 'threads.trackin'"));
+  std::string priority = text;
+  priority.replace(priority.find("priority: 72"), 12, "priority: 99");
+  EXPECT_NO_THROW(parse_board(priority, "b.yaml", "."));
+  priority.replace(priority.find("priority: 99"), 12, "priority: 100");
+  EXPECT_THAT(board_error(priority), HasSubstr("must be in 0..99"));
+  std::string cpu = text;
+  cpu.replace(cpu.find("cpu: 2"), 6, "cpu: x");
+  EXPECT_THAT(board_error(cpu), HasSubstr("threads.tracking.cpu"));
+  // The board's names are the thread table's, both ways.
+  std::vector<std::string> table,
+      board_names(std::begin(firmware::kThreadNames), std::end(firmware::kThreadNames));
+  for (const firmware::ThreadTableEntry& e : firmware::thread_table()) table.emplace_back(e.name);
+  std::sort(table.begin(), table.end());
+  std::sort(board_names.begin(), board_names.end());
+  EXPECT_EQ(table, board_names);
 }
 
 TEST(Board, RelativeRecordingPathsResolveAgainstTheBoardFile) {

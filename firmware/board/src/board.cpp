@@ -75,7 +75,7 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
   const config::YamlDocument doc = config::YamlDocument::parse(text, name);
   const YamlNode& root = doc.root();
   if (!root.is_map()) root.fail("must be a map (a board file)");
-  root.check_keys({"board", "source", "replay", "cameras", "imu", "display", "tracking",
+  root.check_keys({"board", "source", "replay", "cameras", "imu", "display", "tracking", "threads",
                    "calibration", "input"});
   BoardConfig b;
   b.file = name;
@@ -169,6 +169,30 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
       t->fail("max_map_points must hold at least max_tracks + keyframe_points");
     }
     if (tc.max_keyframes < 2) t->at("max_keyframes").fail("must be at least 2");
+  }
+
+  if (const YamlNode* th = root.find("threads")) {
+    th->check_keys({kThreadNames[0], kThreadNames[1], kThreadNames[2], kThreadNames[3],
+                    kThreadNames[4], kThreadNames[5], kThreadNames[6], kThreadNames[7]});
+    static_assert(std::size(kThreadNames) == 8, "threads: check_keys lists every name");
+    for (const std::string_view thread : kThreadNames) {
+      const YamlNode* n = th->find(std::string(thread));
+      if (n == nullptr) continue;
+      n->check_keys({"priority", "cpu"});
+      ThreadPlacementConfig t;
+      t.name = std::string(thread);
+      if (const YamlNode* p = n->find("priority")) {
+        const std::int64_t v = p->as_int();
+        if (v < 0 || v > 99) p->fail("must be in 0..99 (0: SCHED_OTHER)");
+        t.priority = static_cast<int>(v);
+      }
+      if (const YamlNode* cpu = n->find("cpu")) {
+        const std::int64_t v = cpu->as_int();
+        if (v < -1 || v > 1023) cpu->fail("must be a CPU number 0..1023, or -1 for any");
+        t.cpu = static_cast<int>(v);
+      }
+      b.threads.push_back(t);
+    }
   }
 
   if (const YamlNode* c = root.find("calibration")) b.calibration = resolve(base_dir, *c);

@@ -16,14 +16,14 @@ void LiveModule::start(source::SensorSink& sink, drivers::ImuSampleSink& imu_sin
   // Devices open here, before any thread: a missing one is an error at start.
   cameras_ = std::make_unique<LiveStereo>(board_, sink);
   if (board_.imu.driver != "none") imu_ = std::make_unique<LiveImu>(board_, imu_sink);
-  capture_ = std::make_unique<RtThread>(thread_spec("capture", realtime), [this, &stop] {
+  capture_ = std::make_unique<RtThread>(thread_spec("capture", realtime, &board_), [this, &stop] {
     const SetOnExit done(capture_done_);
     tl_allocation_counter = &capture_allocs_;  // the devices are open: none from here on
     cameras_->run(std::numeric_limits<TimeNs>::max(), stop);
     tl_allocation_counter = nullptr;
   });
   if (imu_) {
-    imu_thread_ = std::make_unique<RtThread>(thread_spec("imu", realtime), [this, &stop] {
+    imu_thread_ = std::make_unique<RtThread>(thread_spec("imu", realtime, &board_), [this, &stop] {
       const SetOnExit done(imu_done_);
       tl_allocation_counter = &imu_allocs_;
       imu_->run(std::numeric_limits<TimeNs>::max(), stop);

@@ -12,10 +12,12 @@
 namespace wallar::firmware {
 
 ReplayModule::ReplayModule(const recording::EurocRecording& rec,
-                           const source::ReplayOptions& replay, std::unique_ptr<ReplayPlan> plan)
+                           const source::ReplayOptions& replay, std::unique_ptr<ReplayPlan> plan,
+                           const BoardConfig* board)
     : rec_(rec),
       replay_(replay),
       plan_(std::move(plan)),
+      board_(board),
       end_with_cameras_(rec.cams[0].frames.empty()
                             ? std::numeric_limits<TimeNs>::max()
                             : rec.cams[0].frames.back().t_ns + frame_period_of(rec.cams[0].calib)) {
@@ -23,21 +25,22 @@ ReplayModule::ReplayModule(const recording::EurocRecording& rec,
 
 void ReplayModule::start(source::SensorSink& sink, drivers::ImuSampleSink& /*imu_sink*/,
                          bool realtime, const std::atomic<bool>& stop) {
-  thread_ = std::make_unique<RtThread>(thread_spec("replay", realtime), [this, &sink, &stop] {
-    const SetOnExit done(done_);
-    for (int loop = 0; !stop.load(); ++loop) {
-      source::SensorSink* into = plan_       ? plan_->begin_loop(loop, sink)
-                                 : loop == 0 ? &sink
-                                             : nullptr;
-      if (into == nullptr) break;
-      end_with_cameras_.set_next(*into);
-      source::ReplaySource source(rec_, replay_);
-      const source::ReplayStats s = source.run(end_with_cameras_, stop);
-      accumulate(s);
-      if (plan_) plan_->end_loop(s);
-      if (s.pairs_delivered == 0 && s.imu_samples == 0) break;
-    }
-  });
+  thread_ =
+      std::make_unique<RtThread>(thread_spec("replay", realtime, board_), [this, &sink, &stop] {
+        const SetOnExit done(done_);
+        for (int loop = 0; !stop.load(); ++loop) {
+          source::SensorSink* into = plan_       ? plan_->begin_loop(loop, sink)
+                                     : loop == 0 ? &sink
+                                                 : nullptr;
+          if (into == nullptr) break;
+          end_with_cameras_.set_next(*into);
+          source::ReplaySource source(rec_, replay_);
+          const source::ReplayStats s = source.run(end_with_cameras_, stop);
+          accumulate(s);
+          if (plan_) plan_->end_loop(s);
+          if (s.pairs_delivered == 0 && s.imu_samples == 0) break;
+        }
+      });
 }
 
 bool ReplayModule::join_within(DurationNs timeout_ns) {

@@ -157,7 +157,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   if (options.adjust_tracking) options.adjust_tracking(tracking.tracking);
   if (lockstep) tracking.tracking.mapping_thread = false;
   tracking.tracking.use_gyro = options.use_gyro;
-  tracking.tracking.mapping_thread_spec = thread_spec("mapping", realtime);
+  tracking.tracking.mapping_thread_spec = thread_spec("mapping", realtime, &board);
   tracking.tracking.map_channel = &map_channel;
   tracking.every_frame = every_frame;
   tracking.camera_timeout_ns = options.camera_timeout_ns;
@@ -195,7 +195,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
                           : WallModel{};
     view = std::make_unique<LiveView>(rig, vo, std::move(walls), rig.cams[0].rate_hz,
                                       options.view_walls ? nullptr : &walls_channel,
-                                      thread_spec("render", realtime), options.before_draw);
+                                      thread_spec("render", realtime, &board), options.before_draw);
     report.display = view->display();
     tracker->set_view(view.get());
   }
@@ -203,7 +203,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   ReplayModule* replay_module = nullptr;
   if (replay) {
     auto r = std::make_unique<ReplayModule>(
-        *rec, options.replay, options.replay_plan ? options.replay_plan(*rec) : nullptr);
+        *rec, options.replay, options.replay_plan ? options.replay_plan(*rec) : nullptr, &board);
     replay_module = r.get();
     source = std::move(r);
   } else {
@@ -212,13 +212,13 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
 
   // Threads, consumers first so nothing produced is lost.
   std::atomic<std::uint64_t> tracking_allocs{0}, supervisor_allocs{0};
-  RtThread tracking_thread(thread_spec("tracking", realtime),
+  RtThread tracking_thread(thread_spec("tracking", realtime, &board),
                            [&] { tracker->run(stop_modules, &tracking_allocs); });
   std::unique_ptr<ReconstructionThread> reconstruct_thread;
   if (!lockstep) {
     reconstruct_thread = std::make_unique<ReconstructionThread>(
         reconstruction, map_channel, pose, options.reconstruct_period_ns,
-        thread_spec("reconstruct", realtime), stop_modules);
+        thread_spec("reconstruct", realtime, &board), stop_modules);
   }
   try {
     source->start(pipeline, pipeline, realtime, stop_modules);  // live: opens the devices
@@ -257,7 +257,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   // final adjustment, the report) the main thread is SCHED_OTHER again.
   std::optional<ScopedThreadPriority> supervisor_priority;
   if (realtime) {
-    supervisor_priority.emplace(thread_table_entry("supervisor").priority);
+    supervisor_priority.emplace(thread_table_entry("supervisor", &board).priority);
     if (!supervisor_priority->placement().fallback.empty())
       options.log("thread supervisor: " + supervisor_priority->placement().fallback);
   }
@@ -435,12 +435,13 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   report.threads = live_rows(run_ns);
   ThreadRow sup;
   sup.name = "supervisor";
-  sup.policy = supervisor_fifo ? "FIFO " + std::to_string(thread_table_entry("supervisor").priority)
-                               : std::string("OTHER");
+  sup.policy = supervisor_fifo
+                   ? "FIFO " + std::to_string(thread_table_entry("supervisor", &board).priority)
+                   : std::string("OTHER");
   sup.wakeups = supervisor_wakeups;
   sup.misses = supervisor.misses();
   if (g_allocations_counted) sup.allocations = supervisor_allocs.load();
-  sup.note = thread_table_entry("supervisor").role;
+  sup.note = thread_table_entry("supervisor", &board).role;
   report.threads.push_back(sup);
   // The final map (mapping stopped after a global adjustment) and its walls.
   const MapPtr final_map = tracker->finish();

@@ -30,15 +30,24 @@ constexpr ThreadTableEntry kThreadTable[] = {
 
 std::span<const ThreadTableEntry> thread_table() { return kThreadTable; }
 
-const ThreadTableEntry& thread_table_entry(const char* name) {
+ThreadTableEntry thread_table_entry(const char* name, const BoardConfig* board) {
   for (const ThreadTableEntry& e : kThreadTable) {
-    if (std::string_view(e.name) == name) return e;
+    if (std::string_view(e.name) != name) continue;
+    ThreadTableEntry out = e;
+    if (board != nullptr) {
+      for (const ThreadPlacementConfig& t : board->threads) {
+        if (t.name != name) continue;
+        if (t.priority) out.priority = *t.priority;
+        if (t.cpu) out.cpu = *t.cpu;
+      }
+    }
+    return out;
   }
   throw std::logic_error(std::string("thread table has no ") + name);
 }
 
-ThreadSpec thread_spec(const char* name, bool realtime) {
-  const ThreadTableEntry& e = thread_table_entry(name);
+ThreadSpec thread_spec(const char* name, bool realtime, const BoardConfig* board) {
+  const ThreadTableEntry e = thread_table_entry(name, board);
   ThreadSpec s;
   s.name = e.name;
   s.priority = realtime ? e.priority : 0;

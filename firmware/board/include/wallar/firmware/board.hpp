@@ -14,6 +14,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace wallar::firmware {
 
@@ -65,6 +66,18 @@ struct TrackingConfig {
   bool mapping_thread = true;  //!< false: map in lock step on the tracking thread
 };
 
+/// threads.NAME: a thread of the appliance's thread table placed by the board (the thread table,
+/// firmware/appliance/thread_table.hpp, has the defaults and the names).
+struct ThreadPlacementConfig {
+  std::string name;             //!< "tracking", "capture", ...
+  std::optional<int> priority;  //!< SCHED_FIFO 1..99 in real time; 0: SCHED_OTHER
+  std::optional<int> cpu;       //!< the CPU it is pinned to; -1: any
+};
+
+/// The names threads.NAME may take (the thread table's).
+inline constexpr const char* kThreadNames[] = {"imu",     "capture",     "replay", "tracking",
+                                               "mapping", "reconstruct", "render", "supervisor"};
+
 struct ReplayConfig {
   std::filesystem::path recording;  //!< EuRoC recording (absolute after loading)
   double rate = 1.0;                //!< 0 = as fast as possible
@@ -85,6 +98,7 @@ struct BoardConfig {
   ImuConfig imu;
   DisplayConfig display;
   TrackingConfig tracking;
+  std::vector<ThreadPlacementConfig> threads;        //!< threads: overrides of the thread table
   std::optional<std::filesystem::path> calibration;  //!< EuRoC-style folder or Kalibr YAML
   std::optional<GpioLine> reset_button;
   std::optional<GpioLine> exit_button;

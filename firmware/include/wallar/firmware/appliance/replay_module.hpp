@@ -24,6 +24,7 @@
 #include "wallar/drivers/recording/euroc.hpp"
 #include "wallar/drivers/source/replay_source.hpp"
 #include "wallar/firmware/appliance/source_module.hpp"
+#include "wallar/firmware/board.hpp"
 
 namespace wallar::firmware {
 
@@ -44,9 +45,10 @@ class ReplayPlan {
 
 class ReplayModule final : public SourceModule {
  public:
-  /// `plan` may be null: the recording once, as it is.
+  /// `plan` may be null: the recording once, as it is. `board` (may be null; must outlive the
+  /// module) places the replay thread.
   ReplayModule(const recording::EurocRecording& rec, const source::ReplayOptions& replay,
-               std::unique_ptr<ReplayPlan> plan);
+               std::unique_ptr<ReplayPlan> plan, const BoardConfig* board = nullptr);
   void start(source::SensorSink& sink, drivers::ImuSampleSink& imu_sink, bool realtime,
              const std::atomic<bool>& stop) override;
   [[nodiscard]] bool finished() const override { return done_.load(std::memory_order_acquire); }
@@ -82,6 +84,7 @@ class ReplayModule final : public SourceModule {
   const recording::EurocRecording& rec_;
   source::ReplayOptions replay_;
   std::unique_ptr<ReplayPlan> plan_;
+  const BoardConfig* board_;
   EndWithCameras end_with_cameras_;
   std::unique_ptr<RtThread> thread_;
   std::atomic<bool> done_{false};

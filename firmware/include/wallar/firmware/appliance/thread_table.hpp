@@ -2,7 +2,9 @@
 /// @file thread_table.hpp
 /// @brief The thread table: every thread the appliance starts, in one place (name, SCHED_FIFO
 /// priority, CPU, stack, role). Priorities apply only when the appliance runs in real time and
-/// the system permits SCHED_FIFO (else SCHED_OTHER, said once per thread).
+/// the system permits SCHED_FIFO (else SCHED_OTHER, said once per thread). A board file's
+/// `threads:` section overrides a thread's priority and CPU (board/rpi5.yaml keeps tracking
+/// off the CPU that takes the USB interrupts).
 ///
 /// Threading: constant data and pure functions; any thread.
 #pragma once
@@ -10,6 +12,7 @@
 #include <cstddef>
 #include <span>
 
+#include "wallar/firmware/board.hpp"
 #include "wallar/firmware/rt_thread.hpp"
 
 namespace wallar::firmware {
@@ -24,9 +27,11 @@ struct ThreadTableEntry {
 
 /// The table, in start order of the sensor side first.
 std::span<const ThreadTableEntry> thread_table();
-/// The entry named `name`; throws std::logic_error for a name the table lacks.
-const ThreadTableEntry& thread_table_entry(const char* name);
-/// The placement of thread `name`: its priority when `realtime`, SCHED_OTHER otherwise.
-ThreadSpec thread_spec(const char* name, bool realtime);
+/// The entry named `name`, with the board's overrides when given; throws std::logic_error for
+/// a name the table lacks.
+ThreadTableEntry thread_table_entry(const char* name, const BoardConfig* board = nullptr);
+/// The placement of thread `name` (the board's when given): its priority when `realtime`,
+/// SCHED_OTHER otherwise.
+ThreadSpec thread_spec(const char* name, bool realtime, const BoardConfig* board = nullptr);
 
 }  // namespace wallar::firmware
