@@ -57,11 +57,13 @@ struct LiveStereo::Parts {
   std::unique_ptr<drivers::StereoCapture> capture;
   std::array<std::string, 2> names;
   Log log;
+  LogRing* ring = nullptr;
 };
 
 LiveStereo::LiveStereo(const BoardConfig& board, source::SensorSink& sink, Log log,
-                       drivers::V4l2System& sys)
+                       drivers::V4l2System& sys, LogRing* ring)
     : parts_(std::make_unique<Parts>()) {
+  parts_->ring = ring;
   parts_->sys = &sys;
   const auto configs = camera_configs(board);
   parts_->names = {configs[0].name + " camera (" + configs[0].device + ")",
@@ -74,6 +76,17 @@ LiveStereo::LiveStereo(const BoardConfig& board, source::SensorSink& sink, Log l
     sc.tolerance_ns = static_cast<DurationNs>(board.sync_tolerance_ms * 1e6);
   Parts* parts = parts_.get();
   sc.on_state = [parts](int cam, drivers::CameraState state, const char* reason, int err) {
+    const bool pairs = parts->capture != nullptr && parts->capture->both_streaming();
+    if (parts->ring != nullptr) {
+      // The capture thread runs SCHED_FIFO: a record, formatted by the log thread.
+      parts->ring->post(
+          "%s: %s (%s%s%s); %s",
+          {LogArg::copied(), drivers::to_string(state), reason != nullptr ? reason : "",
+           err != 0 ? ": " : "", err != 0 ? LogArg::error(err) : LogArg(""),
+           pairs ? "stereo pairs again" : "no stereo pairs meanwhile, the IMU stream goes on"},
+          parts->names[static_cast<std::size_t>(cam)].c_str());
+      return;
+    }
     std::string line = "wallar: " + parts->names[static_cast<std::size_t>(cam)] + ": " +
                        drivers::to_string(state) + " (" + reason;
     if (err != 0) line += std::string(": ") + std::strerror(err);

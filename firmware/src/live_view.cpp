@@ -11,11 +11,12 @@ namespace wallar::firmware {
 
 LiveView::LiveView(const RigCalibration& rig, const HeadsetViewOptions& options, WallModel walls,
                    double fps, TripleBuffer<WallModel>* live_walls, ThreadSpec spec,
-                   std::function<void(TimeNs)> before_draw)
+                   std::function<void(TimeNs)> before_draw, LogRing* log)
     : walls_(std::move(walls)),
       fps_(fps),
       live_walls_(live_walls),
-      before_draw_(std::move(before_draw)) {
+      before_draw_(std::move(before_draw)),
+      log_(log) {
   thread_ =
       std::make_unique<RtThread>(std::move(spec), [this, rig, options] { loop(rig, options); });
   // The display opens on the thread that will draw; wait for it to say how that went.
@@ -100,7 +101,11 @@ void LiveView::loop(const RigCalibration& rig, const HeadsetViewOptions& options
       try {
         view = std::make_unique<HeadsetView>(rig, options);
         ++stats_.reopens;
-        std::fprintf(stderr, "wallar: display: re-opened %s\n", view->describe().c_str());
+        if (log_ != nullptr) {
+          log_->post("display: re-opened %s", {LogArg::copied()}, view->describe().c_str());
+        } else {
+          std::fprintf(stderr, "wallar: display: re-opened %s\n", view->describe().c_str());
+        }
       } catch (const std::exception&) {
         // Still gone; said once when it was lost.
       }
@@ -137,8 +142,14 @@ void LiveView::loop(const RigCalibration& rig, const HeadsetViewOptions& options
       post = ViewPost{};  // release the frame's buffers now
       if (!shown) {
         ++stats_.losses;
-        std::fprintf(stderr, "wallar: display lost: %s; re-opening every %lld ms\n",
-                     view->last_error().c_str(), static_cast<long long>(kReopenPeriod.count()));
+        const auto period_ms = static_cast<long long>(kReopenPeriod.count());
+        if (log_ != nullptr) {
+          log_->post("display lost: %s; re-opening every %lld ms", {LogArg::copied(), period_ms},
+                     view->last_error().c_str());
+        } else {
+          std::fprintf(stderr, "wallar: display lost: %s; re-opening every %lld ms\n",
+                       view->last_error().c_str(), period_ms);
+        }
         accumulate(stats_.view, view->stats());
         view.reset();
       }

@@ -173,8 +173,9 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
 
   if (const YamlNode* th = root.find("threads")) {
     th->check_keys({kThreadNames[0], kThreadNames[1], kThreadNames[2], kThreadNames[3],
-                    kThreadNames[4], kThreadNames[5], kThreadNames[6], kThreadNames[7]});
-    static_assert(std::size(kThreadNames) == 8, "threads: check_keys lists every name");
+                    kThreadNames[4], kThreadNames[5], kThreadNames[6], kThreadNames[7],
+                    kThreadNames[8]});
+    static_assert(std::size(kThreadNames) == 9, "threads: check_keys lists every name");
     for (const std::string_view thread : kThreadNames) {
       const YamlNode* n = th->find(std::string(thread));
       if (n == nullptr) continue;

@@ -14,7 +14,8 @@ namespace wallar::firmware {
 void LiveModule::start(source::SensorSink& sink, drivers::ImuSampleSink& imu_sink, bool realtime,
                        const std::atomic<bool>& stop) {
   // Devices open here, before any thread: a missing one is an error at start.
-  cameras_ = std::make_unique<LiveStereo>(board_, sink);
+  cameras_ = std::make_unique<LiveStereo>(board_, sink, LiveStereo::Log{},
+                                          drivers::linux_v4l2_system(), log_);
   if (board_.imu.driver != "none") imu_ = std::make_unique<LiveImu>(board_, imu_sink);
   capture_ = std::make_unique<RtThread>(thread_spec("capture", realtime, &board_), [this, &stop] {
     const SetOnExit done(capture_done_);

@@ -143,6 +143,11 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   Inputs inputs(board, options.input_keys);
   SystemdNotifier notifier;
 
+  // The log: fixed-rate threads post records, a SCHED_OTHER thread formats and writes them
+  // (no stdio or formatting on a SCHED_FIFO thread), rate-limited for the journal.
+  LogRing log_ring;
+  LogThread log_thread(log_ring, options.log, thread_spec("log", realtime, &board), {});
+
   // Channels.
   std::atomic<bool> stop_modules{false};
   Wakeup tracking_wakeup;
@@ -163,7 +168,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   tracking.camera_timeout_ns = options.camera_timeout_ns;
   tracking.imu_timeout_ns = options.imu_timeout_ns;
   tracking.max_records = options.max_records;
-  tracking.log = options.log;
+  tracking.log = &log_ring;
   tracking.before_frame = options.before_frame;
   ReconstructionOptions reconstruction_options;
   reconstruction_options.method = options.wall_method;
@@ -195,7 +200,8 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
                           : WallModel{};
     view = std::make_unique<LiveView>(rig, vo, std::move(walls), rig.cams[0].rate_hz,
                                       options.view_walls ? nullptr : &walls_channel,
-                                      thread_spec("render", realtime, &board), options.before_draw);
+                                      thread_spec("render", realtime, &board), options.before_draw,
+                                      &log_ring);
     report.display = view->display();
     tracker->set_view(view.get());
   }
@@ -207,7 +213,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
     replay_module = r.get();
     source = std::move(r);
   } else {
-    source = std::make_unique<LiveModule>(board);
+    source = std::make_unique<LiveModule>(board, &log_ring);
   }
 
   // Threads, consumers first so nothing produced is lost.
@@ -384,17 +390,12 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
       const bool stalled = w.heartbeat->silent_ns(now) > w.limit_ns;
       if (stalled != w.stalled) {
         w.stalled = stalled;
-        tl_allocation_counter = nullptr;  // a rare transition, said once
-        char line[128];
         if (stalled) {
-          std::snprintf(line, sizeof line,
-                        "%s thread stalled (no progress for %g s): watchdog withheld", w.name,
-                        static_cast<double>(w.limit_ns) * 1e-9);
+          log_ring.post("%s thread stalled (no progress for %g s): watchdog withheld",
+                        {w.name, ns_to_s(w.limit_ns)});
         } else {
-          std::snprintf(line, sizeof line, "%s thread alive again", w.name);
+          log_ring.post("%s thread alive again", {w.name});
         }
-        options.log(line);
-        tl_allocation_counter = &supervisor_allocs;
       }
       any_stalled = any_stalled || stalled;
     }
@@ -411,6 +412,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   pipeline.release_producers();
   // Phase two: join and destroy, source first (it may be inside a device call).
   if (!source->join_within(3 * kNsPerS)) {
+    log_thread.stop();  // what the threads posted first
     options.log("the source did not stop within 3 s (stuck in a device call): exiting without it");
     std::fflush(nullptr);
     std::_Exit(1);
@@ -423,6 +425,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   // of a hung appliance waited for the service manager's SIGKILL (20 s under systemd), also
   // when the hang began just before the stop and the health check had not seen it yet.
   if (!wait_for_tracking(tracking_thread, *tracker, 4 * kNsPerS)) {
+    log_thread.stop();
     options.log(
         "the tracking thread is hung (no heartbeat for 4 s) and did not stop: exiting without "
         "its outputs");
@@ -453,6 +456,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
     reconstruction.maybe_run(*final_map, down_of(p), p.epoch, true);
   }
   if (view) report.view = view->stop();
+  log_thread.stop();  // every thread that posts has stopped: the last lines are out
   report.stages = stage_rows();
   report.mapping_times_ns = tracker->system().mapping_times_ns();
   LatencyHistogram mapping;

@@ -24,6 +24,7 @@ constexpr ThreadTableEntry kThreadTable[] = {
     {"reconstruct", 0, -1, 4 * kMiB, "walls, floor, ceiling"},
     {"render", 0, -1, 4 * kMiB, "headset view (EGL)"},
     {"supervisor", 75, -1, 0, "health, stop, stats, watchdog (main thread)"},
+    {"log", 0, -1, 256 * 1024, "log records formatted and written"},
 };
 
 }  // namespace

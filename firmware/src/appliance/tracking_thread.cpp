@@ -91,13 +91,27 @@ void TrackingThread::request_reset() {
 }
 
 void TrackingThread::event(TimeNs t_ns, const char* what) {
+  // No formatting here (a SCHED_FIFO thread): the time and the static text are kept and
+  // posted; the log thread and events() make the lines.
+  const TimeNs since_ns = t0_ns_ >= 0 ? t_ns - t0_ns_ : 0;
+  if (events_.size() < events_.capacity()) {
+    events_.emplace_back(since_ns, what);
+  } else {
+    ++events_dropped_;
+  }
+  if (options_.log != nullptr) options_.log->post("t=%.3f s: %s", {ns_to_s(since_ns), what});
+}
+
+std::vector<std::string> TrackingThread::events() const {
+  std::vector<std::string> out;
+  out.reserve(events_.size() + 1);
   char line[200];
-  std::snprintf(line, sizeof line, "t=%.3f s: %s", t0_ns_ >= 0 ? ns_to_s(t_ns - t0_ns_) : 0.0,
-                what);
-  // Transitions are rare and logged once each; the strings are the only allocation here.
-  const AllocationPause pause;
-  events_.emplace_back(line);
-  if (options_.log) options_.log(line);
+  for (const auto& [since_ns, what] : events_) {
+    std::snprintf(line, sizeof line, "t=%.3f s: %s", ns_to_s(since_ns), what);
+    out.emplace_back(line);
+  }
+  if (events_dropped_ > 0) out.push_back(std::to_string(events_dropped_) + " more events");
+  return out;
 }
 
 void TrackingThread::drain_imu(TimeNs until_ns) {
@@ -135,7 +149,8 @@ void TrackingThread::on_imu(const ImuSample& s) {
   if (!camera_lost_ && s.t_ns - last_seen_t_ns > camera_timeout_ns_) {
     camera_lost_ = true;
     ++degraded_.camera_lost;
-    event(s.t_ns, "camera lost: IMU-only orientation, last wall model kept");
+    event(s.t_ns,
+          "camera lost: the last image shown frozen, IMU-only orientation, map and walls kept");
     {
       // The frozen image drawn from now on is a copy, so the lost camera's kernel buffers go
       // back now: a device may come back only once its old queue is released (vivid's

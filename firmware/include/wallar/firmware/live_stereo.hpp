@@ -20,6 +20,7 @@
 #include "wallar/drivers/camera/stereo_capture.hpp"
 #include "wallar/drivers/camera/v4l2_system.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/log_ring.hpp"
 
 namespace wallar::firmware {
 
@@ -34,8 +35,10 @@ class LiveStereo {
   /// Opens and starts both cameras (and the trigger line). Throws DeviceError naming the camera
   /// and device when one cannot be opened or refuses the board's format. `sys` must outlive
   /// every frame delivered (frames may outlive this object): the product's never dies.
+  /// `ring` (may be null): camera state changes are posted there as records instead of `log`
+  /// lines, so the capture thread (SCHED_FIFO) formats nothing.
   LiveStereo(const BoardConfig& board, source::SensorSink& sink, Log log = {},
-             drivers::V4l2System& sys = drivers::linux_v4l2_system());
+             drivers::V4l2System& sys = drivers::linux_v4l2_system(), LogRing* ring = nullptr);
   ~LiveStereo();
   LiveStereo(const LiveStereo&) = delete;
   LiveStereo& operator=(const LiveStereo&) = delete;

@@ -5,8 +5,9 @@
 /// never waits for it (a newest-only mailbox: frames the renderer could not draw in time are
 /// skipped and counted), and it never waits for tracking (it sleeps until a post arrives).
 ///
-/// A lost output (GPU context reset, display unplugged, flip timeout) is reported once on
-/// stderr and re-opened every half second until it works; frames posted meanwhile are skipped.
+/// A lost output (GPU context reset, display unplugged, flip timeout) is reported once (as a
+/// log record when given a LogRing, else on stderr) and re-opened every half second until it
+/// works; frames posted meanwhile are skipped.
 ///
 /// Latency: each post carries the CLOCK_MONOTONIC time its camera frame was captured (live
 /// V4L2: the driver's time stamp; replay: when the replay delivered it); the renderer records
@@ -29,6 +30,7 @@
 #include "wallar/dsp/tracking/tracker.hpp"
 #include "wallar/firmware/headset_view.hpp"
 #include "wallar/firmware/latency_histogram.hpp"
+#include "wallar/firmware/log_ring.hpp"
 #include "wallar/firmware/rt_thread.hpp"
 
 namespace wallar::firmware {
@@ -63,7 +65,7 @@ class LiveView {
   LiveView(const RigCalibration& rig, const HeadsetViewOptions& options, WallModel walls,
            double fps, TripleBuffer<WallModel>* live_walls = nullptr,
            ThreadSpec spec = {"render", 0, -1, 0},
-           std::function<void(TimeNs now_ns)> before_draw = {});
+           std::function<void(TimeNs now_ns)> before_draw = {}, LogRing* log = nullptr);
   ~LiveView();
   LiveView(const LiveView&) = delete;
   LiveView& operator=(const LiveView&) = delete;
@@ -97,6 +99,7 @@ class LiveView {
   std::atomic<std::uint64_t> misses_{0};
   Heartbeat heartbeat_{Heartbeat::Kind::kJob};
   std::function<void(TimeNs)> before_draw_;
+  LogRing* log_;  //!< display lost / re-opened; null: stderr
   std::string display_;
   NewestMailbox<ViewPost> mailbox_;
   std::atomic<std::uint32_t> wakeups_{0};

@@ -75,8 +75,9 @@ struct ThreadPlacementConfig {
 };
 
 /// The names threads.NAME may take (the thread table's).
-inline constexpr const char* kThreadNames[] = {"imu",     "capture",     "replay", "tracking",
-                                               "mapping", "reconstruct", "render", "supervisor"};
+inline constexpr const char* kThreadNames[] = {"imu",      "capture",    "replay",
+                                               "tracking", "mapping",    "reconstruct",
+                                               "render",   "supervisor", "log"};
 
 struct ReplayConfig {
   std::filesystem::path recording;  //!< EuRoC recording (absolute after loading)

@@ -19,7 +19,9 @@ namespace wallar::firmware {
 
 class LiveModule final : public SourceModule {
  public:
-  explicit LiveModule(const BoardConfig& board) : board_(board) {}
+  /// `log` (may be null) takes the capture thread's camera state changes as records.
+  explicit LiveModule(const BoardConfig& board, LogRing* log = nullptr)
+      : board_(board), log_(log) {}
   void start(source::SensorSink& sink, drivers::ImuSampleSink& imu_sink, bool realtime,
              const std::atomic<bool>& stop) override;
   [[nodiscard]] bool finished() const override { return capture_done_.load() && imu_done_.load(); }
@@ -34,6 +36,7 @@ class LiveModule final : public SourceModule {
 
  private:
   const BoardConfig& board_;
+  LogRing* log_;
   std::unique_ptr<LiveStereo> cameras_;
   std::unique_ptr<LiveImu> imu_;
   std::unique_ptr<RtThread> capture_, imu_thread_;

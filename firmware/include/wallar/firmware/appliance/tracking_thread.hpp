@@ -36,6 +36,7 @@
 #include "wallar/firmware/appliance/snapshots.hpp"
 #include "wallar/firmware/latency_histogram.hpp"
 #include "wallar/firmware/live_view.hpp"
+#include "wallar/firmware/log_ring.hpp"
 #include "wallar/firmware/tracking_and_mapping.hpp"
 #include "wallar/firmware/wakeup.hpp"
 
@@ -49,8 +50,8 @@ struct TrackingThreadOptions {
   DurationNs camera_timeout_ns = 0;  //!< 0: max(4 frame periods, 200 ms)
   DurationNs imu_timeout_ns = 100 * kNsPerMs;
   std::size_t max_records = 1 << 16;  //!< per-frame records kept (the rest counted only)
-  /// One line per event (transitions); may be empty.
-  std::function<void(const std::string&)> log;
+  /// One record per event (transitions), formatted by the log thread; may be null.
+  LogRing* log = nullptr;
   /// Test tooling (ApplianceOptions::before_frame): called before each frame; may be empty.
   std::function<void(TimeNs t_ns)> before_frame;
 };
@@ -85,7 +86,8 @@ class TrackingThread {
   // After the thread stopped.
   [[nodiscard]] const std::vector<PoseRecord>& records() const { return records_; }
   [[nodiscard]] const DegradedCounters& degraded() const { return degraded_; }
-  [[nodiscard]] const std::vector<std::string>& events() const { return events_; }
+  /// "t=1.234 s: camera lost: ..." per event (formatted here, after the thread stopped).
+  [[nodiscard]] std::vector<std::string> events() const;
   [[nodiscard]] std::uint64_t tracked() const { return tracked_; }
   [[nodiscard]] bool imu_seen() const { return imu_seen_; }
 
@@ -129,7 +131,8 @@ class TrackingThread {
   LatencyHistogram queue_, track_, imu_latency_;
   std::vector<PoseRecord> records_;
   DegradedCounters degraded_;
-  std::vector<std::string> events_;
+  std::vector<std::pair<TimeNs, const char*>> events_;  //!< since the first sample; reserved
+  std::uint64_t events_dropped_ = 0;                    //!< beyond its capacity
 };
 
 }  // namespace wallar::firmware
