@@ -221,8 +221,12 @@ TEST(ApplianceHil, AHungRenderIsSeenAndItsRecoveryToo) {
   ASSERT_EQ(health.size(), 2u) << testing::PrintToString(lines);
   EXPECT_EQ(health[0], "render thread stalled (no progress for 2 s): watchdog withheld");
   EXPECT_EQ(health[1], "render thread alive again");
-  EXPECT_GT(r.view.view.frames, 20u);  // it drew again after the hang
-  EXPECT_GT(r.frames_tracked, 80u);    // 120 frames in 6 s: tracking went on meanwhile
+  // It drew again after the hang (ended 3 s in), and tracking went on meanwhile, to the last
+  // loop's frames, in sensor time (slow builds draw and track fewer of them, the newest still;
+  // under TSan 15 draws and 22 frames).
+  ASSERT_FALSE(r.trajectory.empty());
+  EXPECT_GT(r.view.view.last_t_ns - r.trajectory.front().t_ns, 4 * kNsPerS);
+  EXPECT_GT(r.trajectory.back().t_ns - r.trajectory.front().t_ns, 4 * kNsPerS);
 }
 
 // The board's threads: section places the appliance's threads (here tracking pinned to CPU 1,
