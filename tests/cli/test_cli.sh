@@ -121,7 +121,7 @@ run_sim)
 import json, sys
 d = json.load(open(sys.argv[1]))
 rows = {t['name']: t for t in d['threads']}
-for name in ("tracking", "supervisor", "reconstruct"):
+for name in ("tracking", "supervisor", "reconstruct", "log"):
     assert name in rows, rows.keys()
 for name in ('tracking', 'supervisor'):
     a = rows[name]['allocations_after_start']

@@ -291,6 +291,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
         threads.push_back(row_of(*r, run_ns, view->attempts(), view->misses(), nullptr));
       }
     }
+    threads.push_back(row_of(log_thread.thread(), run_ns, 0, 0, nullptr));
     return threads;
   };
   const DurationNs frame_period = tracker->frame_period_ns();
