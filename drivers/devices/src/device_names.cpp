@@ -22,21 +22,18 @@ namespace {
 
 std::string bounded(const char* s, std::size_t n) { return {s, strnlen(s, n)}; }
 
+bool all_digits(std::string_view s) {
+  return !s.empty() && s.size() <= 4 &&
+         std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
+}
+
 // "gpiochip12" -> 12; nullopt for anything else.
 std::optional<unsigned> chip_number(std::string_view name) {
   constexpr std::string_view kPrefix = "gpiochip";
   if (name.substr(0, kPrefix.size()) != kPrefix) return std::nullopt;
   const std::string_view digits = name.substr(kPrefix.size());
-  if (digits.empty() || digits.size() > 4 ||
-      !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; })) {
-    return std::nullopt;
-  }
+  if (!all_digits(digits)) return std::nullopt;
   return static_cast<unsigned>(std::stoul(std::string(digits)));
-}
-
-bool all_digits(std::string_view s) {
-  return !s.empty() && s.size() <= 4 &&
-         std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
 }
 
 // The /dev/gpiochipN entries of the tree, in numeric order.
