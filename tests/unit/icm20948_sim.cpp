@@ -348,7 +348,10 @@ int Icm20948Sim::rdwr(i2c_rdwr_ioctl_data& data) {
     i2c_msg& rd = data.msgs[next];
     if ((rd.flags & I2C_M_RD) == 0) return finish(-EINVAL);
     // A short read: the adapter stops after half the bytes (they are consumed on the chip).
-    const bool fifo = bank() == 0 && ptr == u8(Reg0::FIFO_R_W);
+    // The address pointer increments after each byte but stops at FIFO_R_W: a burst from
+    // FIFO_COUNTH reads the count, then pops FIFO bytes.
+    const auto fifo_r_w = u8(Reg0::FIFO_R_W);
+    const bool fifo = bank() == 0 && ptr <= fifo_r_w && ptr + rd.len > fifo_r_w;
     if (fault == Fault::kEioMidRead && !fifo) {
       faults_.push_front(*fault);  // for the next FIFO burst
       fault.reset();
@@ -357,7 +360,8 @@ int Icm20948Sim::rdwr(i2c_rdwr_ioctl_data& data) {
     const std::uint16_t len = half ? rd.len / 2 : rd.len;
     // FIFO_COUNTH latches the count for FIFO_COUNTL.
     for (std::uint16_t i = 0; i < len; ++i) {
-      rd.buf[i] = read_reg(fifo ? ptr : static_cast<std::uint8_t>(ptr + i));
+      const auto r = static_cast<std::uint8_t>(ptr + i);
+      rd.buf[i] = read_reg(fifo ? std::min(r, fifo_r_w) : r);
     }
     rd.len = len;
     if (fault == Fault::kEioMidRead) return finish(-EIO);  // the bytes are gone from the chip

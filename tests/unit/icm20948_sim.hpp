@@ -7,7 +7,8 @@
 /// values, bank 0, sleep); sampling at 1125 Hz / (1 + GYRO_SMPLRT_DIV) from wake-up, on its
 /// own (optionally wrong) oscillator; the FIFO (512 bytes, the enabled sensors in register
 /// order, big-endian, snapshot or stream mode, INT_STATUS_2 overflow bits, FIFO_COUNT,
-/// FIFO_R_W popping bytes, FIFO_RST); a data-ready edge per sample when INT_ENABLE_1 asks;
+/// FIFO_R_W popping bytes, 0xFF and nothing popped when empty, FIFO_RST); register bursts
+/// auto-increment but stop at FIFO_R_W; a data-ready edge per sample when INT_ENABLE_1 asks;
 /// clear-on-read status registers; the aux master's SLV4 one-shot transfers and SLV0 periodic
 /// reads of an AK09916 that measures at 100 Hz in its own axes (Y, Z opposite to the accel's).
 /// Motion comes from a truth function; every generated sample is logged with its raw values.
@@ -61,8 +62,9 @@ struct SimTraffic {
 class Icm20948Sim final : public drivers::I2cAdapter {
  public:
   /// kEio fails before any byte moves; kShortRead completes half a read and says so;
-  /// kEioMidRead waits for the next read of FIFO_R_W, clocks half of it out of the FIFO and
-  /// then fails with EIO, as a bus error part-way through a burst does.
+  /// kEioMidRead waits for the next read that reaches FIFO_R_W, clocks half of it out (FIFO
+  /// bytes leave the chip) and then fails with EIO, as a bus error part-way through a burst
+  /// does.
   enum class Fault : std::uint8_t { kNack, kEio, kShortRead, kEioMidRead };
 
   explicit Icm20948Sim(std::uint16_t address = 0x68, SimTruthFn truth = {});

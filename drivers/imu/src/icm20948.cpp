@@ -147,7 +147,10 @@ constexpr DurationNs kResetTimeoutNs = 100 * kNsPerMs;  // WAIT_FOR_RESET gives 
 constexpr DurationNs kRetryNs = 10 * kNsPerMs;          // after a failed RESET write
 constexpr DurationNs kSlv4WaitNs = 1 * kNsPerMs;        // one aux-bus byte at 345.6 kHz: ~100 us
 constexpr DurationNs kSlv4TimeoutNs = 20 * kNsPerMs;
-constexpr DurationNs kMagPollNs = 2 * kNsPerMs;  // EXT_SLV_SENS_DATA read period
+// EXT_SLV_SENS_DATA read period: half the AK09916's 10 ms, so no measurement is missed.
+constexpr DurationNs kMagPollNs = 5 * kNsPerMs;
+// One configuration register re-checked per period, round-robin (the whole table in ~0.2 s).
+constexpr DurationNs kRecheckPeriodNs = 10 * kNsPerMs;
 constexpr int kConfigureAttempts = 3;
 constexpr unsigned kEdgeLagRecords = 2;  // records without edges before edges count as missed
 constexpr std::uint8_t kDlpfCfg = 1;     // gyro 196.6 Hz / accel 246 Hz 3 dB (tables 16, 18)
@@ -212,6 +215,7 @@ Icm20948::Icm20948(I2cDevice& device, const Config& config, ImuSampleSink& sink)
 bool Icm20948::transfer(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx,
                         bool repeatable) {
   const int err = repeatable ? device_.transfer(tx, rx) : device_.transfer_once(tx, rx);
+  last_error_ = err;
   if (err == 0) {
     if (failures_ > 0) --failures_;
     return true;
@@ -424,6 +428,7 @@ TimeNs Icm20948::step_configure(TimeNs now_ns) {
       t_mag_read_ns_ = now_ns;
       last_mag_burst_.fill(0);
       recheck_ = 0;
+      t_recheck_ns_ = now_ns;
       return now_ns + (config_.has_data_ready ? 4 * period_ns_ : period_ns_);
     }
   }
@@ -487,34 +492,54 @@ void Icm20948::flush_fifo(TimeNs now_ns, bool edge, bool overflow) {
 
 TimeNs Icm20948::read_fifo(TimeNs now_ns, bool edge) {
   using namespace icm20948;  // NOLINT(google-build-using-namespace)
-  std::array<std::uint8_t, 1> status{};
-  std::array<std::uint8_t, 2> count_buf{};
-  // INT_STATUS_2 clears on read: a failed read may have cleared the overflow flag already, so
-  // it is not retried (a FIFO that overflowed meanwhile still shows a full count below).
-  if (!read(Bank::k0, u8(Reg0::INT_STATUS_2), status, false) ||
-      !read(Bank::k0, u8(Reg0::FIFO_COUNTH), count_buf)) {
-    return now_ns;
+  constexpr std::size_t kRecord = sizeof(FifoRecord);
+  // fifo_buf_ holds FIFO_COUNTH, FIFO_COUNTL, then the records: one burst from FIFO_COUNTH
+  // reads the count and goes on into FIFO_R_W, where the chip's address pointer stops (PX4's
+  // ICM-20948 driver reads the same way).
+  const std::span<std::uint8_t> count_buf(fifo_buf_.data(), kFifoCountBytes);
+  std::uint8_t* const records = fifo_buf_.data() + kFifoCountBytes;
+  const std::size_t max_read = device_.max_read_bytes();
+  // FIFO_R_W hands out the next byte on every read, so a burst the bus cannot carry in one
+  // transfer (an SMBus-only adapter: 32 bytes) goes as several, each of whole records.
+  const std::size_t chunk =
+      max_read >= kRecord ? max_read / kRecord * kRecord : std::max<std::size_t>(max_read, 1);
+  // The edges since the last read announce that many records: read them with the count.
+  const std::size_t announced =
+      polling_ ? 0 : std::min<std::size_t>(pending_edges_, kFifoMaxRecords);
+  std::size_t got = 0;  // records read so far
+  if (announced > 0 && max_read >= kFifoCountBytes + kRecord) {
+    got = std::min(announced, (max_read - kFifoCountBytes) / kRecord);
+    // Never retried: the bytes clocked out of FIFO_R_W before a failure are gone, and a
+    // retry would cut records at the wrong boundaries. Only a NACK moved nothing.
+    if (!read(Bank::k0, u8(Reg0::FIFO_COUNTH),
+              std::span<std::uint8_t>(fifo_buf_.data(), kFifoCountBytes + got * kRecord), false)) {
+      if (!is_i2c_nack(last_error_)) flush_fifo(now_ns, edge, false);
+      return now_ns;
+    }
+  } else if (!read(Bank::k0, u8(Reg0::FIFO_COUNTH), count_buf)) {
+    return now_ns;  // the count alone is an ordinary register pair: the bus retries it
   }
   const std::size_t count =
       (static_cast<std::size_t>(count_buf[0] & kFifoCountHMask) << 8) | count_buf[1];
-  if ((status[0] & FIFO_OVERFLOW_INT) != 0 || count >= kFifoSize) {
+  // A FIFO in snapshot mode stops when the next record does not fit: samples were lost.
+  if (count + kRecord > kFifoSize) {
     flush_fifo(now_ns, edge, true);
     return now_ns;
   }
-  const std::size_t n = std::min(count / sizeof(FifoRecord), kFifoMaxRecords);
+  const std::size_t n = std::min(count / kRecord, kFifoMaxRecords);
+  if (n < got) {
+    // The burst read past the records the FIFO held (stale edges): a record the chip wrote
+    // during it may have been cut. Start the FIFO over.
+    flush_fifo(now_ns, edge, false);
+    return now_ns;
+  }
   if (n == 0) return now_ns;  // a partial record stays in the FIFO until it is whole
-  const std::span<std::uint8_t> bytes(fifo_buf_.data(), n * sizeof(FifoRecord));
+  // More records than edges announced (missed edges, or polling): read the rest.
   const std::array<std::uint8_t, 1> fifo_reg{u8(Reg0::FIFO_R_W)};
-  // FIFO_R_W hands out the next byte on every read, so a burst the bus cannot carry in one
-  // transfer (an SMBus-only adapter: 32 bytes) goes as several, each of whole records.
-  const std::size_t max_read = device_.max_read_bytes();
-  const std::size_t chunk = max_read >= sizeof(FifoRecord)
-                                ? max_read / sizeof(FifoRecord) * sizeof(FifoRecord)
-                                : std::max<std::size_t>(max_read, 1);
-  bool read_ok = select_bank(Bank::k0);
-  for (std::size_t at = 0; read_ok && at < bytes.size(); at += chunk) {
-    // Never retried: a burst that failed part-way has taken bytes the retry would not see.
-    read_ok = transfer(fifo_reg, bytes.subspan(at, std::min(chunk, bytes.size() - at)), false);
+  bool read_ok = got == n || select_bank(Bank::k0);
+  for (std::size_t at = got * kRecord; read_ok && at < n * kRecord; at += chunk) {
+    read_ok = transfer(
+        fifo_reg, std::span<std::uint8_t>(records + at, std::min(chunk, n * kRecord - at)), false);
   }
   if (!read_ok) {
     // Some bytes may have left the FIFO: record boundaries are lost, start it over.
@@ -560,7 +585,7 @@ TimeNs Icm20948::read_fifo(TimeNs now_ns, bool edge) {
 
   for (std::size_t i = 0; i < n; ++i) {
     FifoRecord r;
-    std::memcpy(&r, fifo_buf_.data() + i * sizeof(FifoRecord), sizeof(FifoRecord));
+    std::memcpy(&r, records + i * kRecord, kRecord);
     const ScaledRecord s = scale_record(r, config_.accel_range, config_.gyro_range);
     ImuSample sample;
     sample.t_ns = clock_.time_of(k_next_ + i);
@@ -575,7 +600,9 @@ TimeNs Icm20948::read_fifo(TimeNs now_ns, bool edge) {
   have_last_sample_ = true;
   k_next_ += n;
 
-  // One configuration register re-checked per read, round-robin.
+  // One configuration register re-checked per period, round-robin.
+  if (now_ns - t_recheck_ns_ < kRecheckPeriodNs) return now_ns;
+  t_recheck_ns_ = now_ns;
   const ConfigEntry& e = table_[recheck_];
   recheck_ = (recheck_ + 1) % table_size_;
   bool ok = true;

@@ -11,12 +11,17 @@
 ///                  (read-modify-write), read every entry back; then, with the magnetometer,
 ///                  probe the AK09916 (WIA2 = 0x09) and set it to 100 Hz continuous through the
 ///                  auxiliary master's one-shot slave 4; then empty the FIFO.
-///   RUN            on data-ready edges (every `fifo_read_every`-th) or on the timeout: read
-///                  INT_STATUS_2 and FIFO_COUNT, read the whole records (in one transfer,
-///                  or in several of whole records where the bus carries less, as an
-///                  SMBus-only adapter's 32 bytes: max_read_bytes()), push them; read the
-///                  magnetometer's copy in EXT_SLV_SENS_DATA; re-check one configuration
-///                  register per read (a mismatch counts config_mismatch and resets).
+///   RUN            on data-ready edges (every `fifo_read_every`-th) or on the timeout: one
+///                  burst from FIFO_COUNTH reads the count and the records the edges
+///                  announced (the address stops at FIFO_R_W); more records than edges, or
+///                  polling, read the rest (or all) from FIFO_R_W, in transfers of whole
+///                  records where the bus carries less (an SMBus-only adapter's 32 bytes:
+///                  max_read_bytes()); push them; read the magnetometer's copy in
+///                  EXT_SLV_SENS_DATA every 5 ms; re-check one configuration register every
+///                  10 ms (a mismatch counts config_mismatch and resets). A count with no
+///                  room for another record is an overflow (snapshot mode stopped the FIFO).
+///                  A burst that fails part-way, or that read past the FIFO's records, is
+///                  never repeated: the FIFO is emptied and started over (resync).
 /// Every failed transfer counts in its class (nack, short_transfer, bad_transfer) and raises a
 /// failure counter that good transfers lower; past `failure_limit` the device is reset. Every
 /// return to RESET after the first counts in `resets`. Nothing sleeps.
@@ -235,7 +240,12 @@ class Icm20948 final : public ImuDriver {
   bool have_last_sample_ = false;
   TimeNs t_last_sample_ns_ = 0;
 
-  alignas(8) std::array<std::uint8_t, icm20948::kFifoSize> fifo_buf_{};
+  TimeNs t_recheck_ns_ = 0;
+  int last_error_ = 0;  // of the latest transfer (0, an errno, kI2cShortTransfer)
+
+  // FIFO_COUNTH, FIFO_COUNTL, then up to a full FIFO of records.
+  static constexpr std::size_t kFifoCountBytes = 2;
+  std::array<std::uint8_t, kFifoCountBytes + icm20948::kFifoSize> fifo_buf_{};
 };
 
 }  // namespace wallar::drivers
