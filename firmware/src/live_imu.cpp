@@ -14,6 +14,7 @@
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/bus/gpio.hpp"
 #include "wallar/drivers/bus/i2c.hpp"
+#include "wallar/drivers/bus/i2c_recovery.hpp"
 #include "wallar/drivers/imu/bno055_uart.hpp"
 #include "wallar/drivers/imu/icm20948.hpp"
 #include "wallar/drivers/usb/usb.hpp"
@@ -22,6 +23,7 @@ namespace wallar::firmware {
 
 struct LiveImu::Parts {
   std::unique_ptr<drivers::LinuxI2cAdapter> adapter;
+  std::unique_ptr<drivers::I2cRecovery> recovery;
   std::unique_ptr<drivers::I2cBus> bus;
   std::unique_ptr<drivers::GpioEdgeInput> data_ready;
   std::unique_ptr<drivers::ImuDriver> driver;
@@ -44,11 +46,28 @@ LiveImu::LiveImu(const BoardConfig& board, drivers::ImuSampleSink& sink)
   const ImuConfig& imu = board.imu;
   if (imu.driver == "icm20948") {
     parts_->adapter = std::make_unique<drivers::LinuxI2cAdapter>(imu.bus);
-    // Recovery on a real board means nine SCL clocks or an adapter unbind; the bus counts
-    // the attempt, the driver's full reset follows.
-    parts_->bus = std::make_unique<drivers::I2cBus>(*parts_->adapter, imu.address);
+    // A stuck bus (every transfer failing) is freed as the board says; the bus counts the
+    // attempt, the driver's full reset follows.
+    drivers::I2cRecoveryHook hook;
+    if (imu.bus_recovery) {
+      drivers::I2cRecoveryConfig rc;
+      rc.adapter = imu.bus;
+      rc.rebind = imu.bus_recovery->rebind;
+      const auto line = [](const GpioLine& g) {
+        return drivers::GpioLineSpec{g.chip, static_cast<unsigned>(g.line), g.active_low};
+      };
+      if (imu.bus_recovery->scl) rc.scl = line(*imu.bus_recovery->scl);
+      if (imu.bus_recovery->sda) rc.sda = line(*imu.bus_recovery->sda);
+      parts_->recovery = std::make_unique<drivers::I2cRecovery>(rc);
+      hook = [parts = parts_.get()] {
+        parts->recovery->run([parts] { parts->adapter->reopen(); });
+      };
+    }
+    parts_->bus = std::make_unique<drivers::I2cBus>(*parts_->adapter, imu.address,
+                                                    drivers::I2cBus::Options{}, std::move(hook));
     drivers::Icm20948::Config config;
     config.rate_hz = imu.rate_hz;
+    config.fifo_read_every = static_cast<unsigned>(imu.fifo_batch);
     config.has_data_ready = imu.data_ready.has_value();
     if (imu.data_ready) {
       parts_->data_ready = std::make_unique<drivers::GpioEdgeInput>(
@@ -63,6 +82,13 @@ LiveImu::LiveImu(const BoardConfig& board, drivers::ImuSampleSink& sink)
     if (imu.data_ready)
       description_ +=
           ", data-ready " + imu.data_ready->chip + ":" + std::to_string(imu.data_ready->line);
+    if (imu.fifo_batch > 1) description_ += ", " + std::to_string(imu.fifo_batch) + " per read";
+    if (parts_->recovery) {
+      description_ += ", bus recovery:";
+      if (!parts_->recovery->controller().empty())
+        description_ += " rebind " + parts_->recovery->controller();
+      if (imu.bus_recovery->scl) description_ += " clear";
+    }
   } else if (imu.driver == "bno055") {
     drivers::Bno055UartConfig config;
     config.device = imu.bus.empty() ? find_usb_tty(imu.usb_id) : imu.bus;

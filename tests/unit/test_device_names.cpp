@@ -96,6 +96,14 @@ void pi5_devices(FakeTree& t, int calibrated_width) {
   t.link("/dev/v4l/by-path/platform-xhci-hcd.1-usb-0:1:1.0-video-index0", "../../video2");
   t.link("/dev/v4l/by-path/platform-xhci-hcd.0-usb-0:1:1.0-video-index0", "../../video0");
   t.node("/dev/i2c-1");
+  // RP1's I2C1 in sysfs: the adapter under its controller, the controller's driver.
+  t.node("/sys/devices/platform/axi/1000120000.pcie/1f00074000.i2c/i2c-1/name");
+  t.link("/sys/bus/i2c/devices/i2c-1",
+         "../../../devices/platform/axi/1000120000.pcie/1f00074000.i2c/i2c-1");
+  t.node("/sys/bus/platform/drivers/i2c_designware/bind");
+  t.node("/sys/bus/platform/drivers/i2c_designware/unbind");
+  t.link("/sys/devices/platform/axi/1000120000.pcie/1f00074000.i2c/driver",
+         "../../../../../bus/platform/drivers/i2c_designware");
   t.node("/dev/dri/card0");
   t.node("/dev/dri/card1");
   t.link("/dev/dri/by-path/platform-1002000000.v3d-card", "../card0");
@@ -235,7 +243,10 @@ TEST(BoardDevices, ThePi5BoardResolvesEveryDeviceOnAPi5TreeOfEitherKernel) {
               "/dev/dri/by-path/platform-axi:gpu-card -> /dev/dri/card1");
     EXPECT_EQ(found(check, "calibration"), "/etc/wallar/calibration/camchain.yaml");
     EXPECT_EQ(found(check, "cameras.left mode"), "640x480 YUYV @ 30 Hz, as calibrated");
-    EXPECT_EQ(check.found.size(), 11u);
+    EXPECT_EQ(found(check, "imu.bus_recovery"), "rebinds 1f00074000.i2c (i2c_designware)");
+    EXPECT_EQ(found(check, "imu.bus_recovery.scl.chip"),
+              "pinctrl-rp1 -> " + rp1 + " (54 lines, 'pinctrl-rp1'), line 3");
+    EXPECT_EQ(check.found.size(), 14u);
     // What the appliance opens: the chips by path.
     firmware::BoardCheck again;
     const firmware::BoardConfig resolved = firmware::resolve_board_devices(board, tree, &again);

@@ -77,6 +77,10 @@ TEST(Board, TheShippedBoardFilesLoad) {
   ASSERT_TRUE(pi.imu.data_ready);
   EXPECT_EQ(pi.imu.data_ready->chip, "pinctrl-rp1");  // by label: gpiochip0 or 4 by kernel
   EXPECT_EQ(pi.imu.data_ready->line, 24);
+  EXPECT_EQ(pi.imu.fifo_batch, 4);
+  ASSERT_TRUE(pi.imu.bus_recovery);
+  EXPECT_EQ(pi.imu.bus_recovery->scl->line, 3);  // RP1 GPIO3 is I2C1's SCL, GPIO2 its SDA
+  EXPECT_EQ(pi.imu.bus_recovery->sda->line, 2);
   EXPECT_EQ(pi.cameras[1].usb_id, "32e4:9750");
   EXPECT_EQ(pi.cameras[0].pixel_format, "YUYV");
   EXPECT_EQ(pi.display.connector, "HDMI-A-1");
@@ -173,6 +177,35 @@ TEST(Board, WrongTypesAndRangesAreNamed) {
   text = kLiveBoard;
   text.replace(text.find("source: live"), 12, "source: cloud");
   EXPECT_THAT(board_error(text), HasSubstr("b.yaml:3: 'source' must be one of replay, live"));
+}
+
+TEST(Board, ImuFifoBatchAndBusRecoveryAreReadAndChecked) {
+  const std::string icm = "  address: 0x69\n";
+  std::string text = kLiveBoard;
+  text.replace(text.find(icm), icm.size(),
+               icm +
+                   "  fifo_batch: 4\n  bus_recovery:\n    scl: {chip: pinctrl-rp1, line: 3}\n"
+                   "    sda: {chip: pinctrl-rp1, line: 2}\n");
+  const auto b = parse_board(text, "b.yaml", ".");
+  EXPECT_EQ(b.imu.fifo_batch, 4);
+  ASSERT_TRUE(b.imu.bus_recovery);
+  EXPECT_TRUE(b.imu.bus_recovery->rebind);
+  EXPECT_EQ(b.imu.bus_recovery->scl->line, 3);
+  EXPECT_EQ(b.imu.bus_recovery->sda->chip, "pinctrl-rp1");
+  EXPECT_EQ(parse_board(kLiveBoard, "b.yaml", ".").imu.fifo_batch, 1);  // the default
+
+  std::string big = text;
+  big.replace(big.find("fifo_batch: 4"), 13, "fifo_batch: 40");
+  EXPECT_THAT(board_error(big), HasSubstr("'imu.fifo_batch' must be in 1..21"));
+  std::string one_line = text;
+  one_line.replace(one_line.find("    sda:"),
+                   std::string("    sda: {chip: pinctrl-rp1, line: 2}\n").size(), "");
+  EXPECT_THAT(board_error(one_line),
+              HasSubstr("'imu.bus_recovery' needs both scl and sda (the bus clear drives both "
+                        "lines), or neither"));
+  std::string nothing = kLiveBoard;
+  nothing.replace(nothing.find(icm), icm.size(), icm + "  bus_recovery: {rebind: false}\n");
+  EXPECT_THAT(board_error(nothing), HasSubstr("'imu.bus_recovery' asks for nothing"));
 }
 
 TEST(Board, TrackingCapacitiesAreReadAndChecked) {

@@ -130,7 +130,15 @@ LinuxI2cAdapter::~LinuxI2cAdapter() {
   if (fd_ >= 0) ::close(fd_);
 }
 
+bool LinuxI2cAdapter::reopen() {
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = ::open(path_.c_str(), O_RDWR | O_CLOEXEC);
+  slave_address_ = -1;  // a new descriptor has no I2C_SLAVE address yet
+  return fd_ >= 0;
+}
+
 int LinuxI2cAdapter::rdwr(i2c_rdwr_ioctl_data& data) {
+  if (fd_ < 0) return -ENODEV;
   if (smbus_only_) return rdwr_over_smbus(data, funcs_, *this);
   const int n = ::ioctl(fd_, I2C_RDWR, &data);
   return n < 0 ? -errno : n;
@@ -142,6 +150,7 @@ std::size_t LinuxI2cAdapter::max_read_bytes() const {
 }
 
 int LinuxI2cAdapter::smbus(std::uint16_t address, i2c_smbus_ioctl_data& call) {
+  if (fd_ < 0) return -ENODEV;
   // i2c-dev's SMBus transactions go to the address I2C_SLAVE set (EBUSY: a kernel driver
   // has bound that address).
   if (slave_address_ != address) {

@@ -118,7 +118,8 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
   }
 
   if (const YamlNode* imu = root.find("imu")) {
-    imu->check_keys({"driver", "bus", "usb_id", "address", "baud", "rate_hz", "data_ready"});
+    imu->check_keys({"driver", "bus", "usb_id", "address", "baud", "rate_hz", "data_ready",
+                     "fifo_batch", "bus_recovery"});
     b.imu.driver = one_of(imu->at("driver"), {"none", "icm20948", "bno055"});
     if (const YamlNode* usb = imu->find("usb_id")) {
       if (b.imu.driver != "bno055") usb->fail("is for serial IMUs on a USB-UART bridge (bno055)");
@@ -139,6 +140,23 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
     if (const YamlNode* baud = imu->find("baud")) b.imu.baud = positive_int(*baud, 4'000'000);
     if (const YamlNode* rate = imu->find("rate_hz")) b.imu.rate_hz = positive_double(*rate);
     if (const YamlNode* dr = imu->find("data_ready")) b.imu.data_ready = parse_gpio(*dr);
+    if (const YamlNode* fb = imu->find("fifo_batch")) {
+      if (b.imu.driver != "icm20948") fb->fail("is for FIFO IMUs on I2C (icm20948)");
+      b.imu.fifo_batch = positive_int(*fb, 21);  // half the 42-record FIFO
+    }
+    if (const YamlNode* rec = imu->find("bus_recovery")) {
+      if (b.imu.driver != "icm20948") rec->fail("is for I2C IMUs (icm20948)");
+      rec->check_keys({"rebind", "scl", "sda"});
+      ImuConfig::BusRecovery r;
+      r.rebind = rec->get_bool("rebind", true);
+      if (const YamlNode* scl = rec->find("scl")) r.scl = parse_gpio(*scl);
+      if (const YamlNode* sda = rec->find("sda")) r.sda = parse_gpio(*sda);
+      if (r.scl.has_value() != r.sda.has_value()) {
+        rec->fail("needs both scl and sda (the bus clear drives both lines), or neither");
+      }
+      if (!r.rebind && !r.scl) rec->fail("asks for nothing: rebind is false and no lines given");
+      b.imu.bus_recovery = r;
+    }
   }
 
   if (const YamlNode* d = root.find("display")) {

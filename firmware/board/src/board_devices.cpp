@@ -10,6 +10,7 @@
 #include <system_error>
 
 #include "wallar/core/error.hpp"
+#include "wallar/drivers/bus/i2c_recovery.hpp"
 #include "wallar/drivers/recording/calibration_files.hpp"
 
 namespace wallar::firmware {
@@ -104,8 +105,30 @@ BoardConfig resolve_board_devices(const BoardConfig& board, const drivers::Devic
                                true});
   }
   if (out.camera_trigger) r.gpio("cameras.trigger", &*out.camera_trigger);
-  if (board.imu.driver != "none" && !board.imu.bus.empty()) r.node("imu.bus", board.imu.bus);
+  std::string imu_node;
+  if (board.imu.driver != "none" && !board.imu.bus.empty()) {
+    r.node("imu.bus", board.imu.bus, &imu_node);
+  }
   if (out.imu.data_ready) r.gpio("imu.data_ready", &*out.imu.data_ready);
+  if (out.imu.bus_recovery) {
+    ImuConfig::BusRecovery& rec = *out.imu.bus_recovery;
+    if (rec.scl) r.gpio("imu.bus_recovery.scl", &*rec.scl);
+    if (rec.sda) r.gpio("imu.bus_recovery.sda", &*rec.sda);
+    if (rec.rebind && !imu_node.empty()) {
+      // What the recovery would unbind and bind: the adapter's controller and its driver.
+      try {
+        drivers::I2cRecoveryConfig config;
+        config.adapter = imu_node;
+        config.sysfs_root = tree.host_path("/sys").string();
+        const drivers::I2cRecovery recovery(config);
+        check->found.push_back(
+            {"imu.bus_recovery", "rebinds " + recovery.controller() + " (" +
+                                     fs::path(recovery.driver_dir()).filename().string() + ")"});
+      } catch (const DeviceError& e) {
+        check->problems.push_back({std::string("imu.bus_recovery: ") + e.what(), false});
+      }
+    }
+  }
   if (board.display.backend == "kms") r.node("display.card", board.display.card);
   if (out.reset_button) r.gpio("input.reset_button", &*out.reset_button);
   if (out.exit_button) r.gpio("input.exit_button", &*out.exit_button);

@@ -43,6 +43,16 @@ struct ImuConfig {
   int baud = 115200;            //!< serial drivers
   double rate_hz = 200.0;
   std::optional<GpioLine> data_ready;
+  /// I2C IMUs: records per FIFO read (batches share one transaction's overhead; each record
+  /// keeps its own time stamp, back-dated by the period).
+  int fifo_batch = 1;
+  /// I2C IMUs: how a stuck bus is freed (drivers/bus/i2c_recovery.hpp); absent: not at all.
+  struct BusRecovery {
+    bool rebind = true;  //!< unbind and bind the adapter's platform driver around the clocks
+    std::optional<GpioLine> scl;  //!< the bus's pins as GPIO lines, for the bus clear
+    std::optional<GpioLine> sda;
+  };
+  std::optional<BusRecovery> bus_recovery;
 };
 
 struct DisplayConfig {

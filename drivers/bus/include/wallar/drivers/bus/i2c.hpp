@@ -125,6 +125,10 @@ class LinuxI2cAdapter final : public I2cAdapter, private SmbusPort {
   /// kSmbusBlockMax in SMBus mode (1 without I2C-block reads), else kI2cNoReadLimit.
   [[nodiscard]] std::size_t max_read_bytes() const override;
   [[nodiscard]] const std::string& path() const { return path_; }
+  /// Closes the node and opens it again (after a bus recovery rebound the adapter: the old
+  /// descriptor belongs to the removed one). False when it cannot be opened; transfers then
+  /// fail with ENODEV until a later reopen() succeeds. Never throws; allocates nothing.
+  bool reopen();
   /// True when the adapter has no plain I2C and requests go as SMBus transactions.
   [[nodiscard]] bool smbus_only() const { return smbus_only_; }
 
@@ -148,10 +152,10 @@ struct I2cBusCounters {
   std::uint64_t recoveries = 0;  //!< times the recovery hook was called
 };
 
-/// What to do when the bus looks stuck. On a real board: clock SCL nine times through the
-/// pin's GPIO function until the slave releases SDA, then issue a STOP; or unbind/bind the
-/// adapter driver (echo the adapter to /sys/bus/platform/drivers/<drv>/unbind then bind), as
-/// PX4 and the kernel's i2c_recover_bus() do. Called on the bus's thread; may block briefly.
+/// What to do when the bus looks stuck: on a board, I2cRecovery::run (i2c_recovery.hpp), which
+/// unbinds the adapter's driver, clocks SCL until the slave releases SDA, issues a STOP and
+/// binds the driver again, as the kernel's i2c_recover_bus() does. Called on the bus's thread;
+/// may block briefly.
 using I2cRecoveryHook = std::function<void()>;
 
 /// The Linux implementation of I2cDevice on top of an adapter (real or simulated).
