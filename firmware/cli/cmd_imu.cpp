@@ -16,6 +16,7 @@
 #include "wallar/core/error.hpp"
 #include "wallar/eval/output.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/board_devices.hpp"
 #include "wallar/firmware/imu_attitude.hpp"
 #include "wallar/firmware/live_imu.hpp"
 
@@ -99,10 +100,14 @@ std::atomic<bool> g_stop{false};
 extern "C" void on_signal(int) { g_stop.store(true); }
 
 int run_live_imu(const ImuArgs& a) {
-  const firmware::BoardConfig board = firmware::load_board(a.board);
   if (!(a.seconds > 0.0 && a.seconds <= 86400.0)) {
     throw InputError("--seconds: must be in (0, 86400], got " + std::to_string(a.seconds));
   }
+  // The IMU's devices by their stable names before it opens (each problem one line naming
+  // its board key).
+  const firmware::BoardConfig board = firmware::check_sensor_board(
+      firmware::load_board(a.board), drivers::DeviceTree(), {"imu"},
+      [](const std::string& line) { std::cerr << "wallar: " << line << "\n"; });
   dsp::AttitudeFilterConfig config;
   config.init_window_samples = static_cast<std::size_t>(std::max(20.0, board.imu.rate_hz));
   // Room for the whole run at up to twice the nominal rate (an oscillator runs fast, the

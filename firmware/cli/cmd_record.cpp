@@ -6,13 +6,16 @@
 #include <cstdio>
 #include <iostream>
 #include <limits>
+#include <memory>
 #include <thread>
 
 #include "commands.hpp"
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/recording/calibration_files.hpp"
+#include "wallar/drivers/recording/rotating_writer.hpp"
 #include "wallar/drivers/source/async_recorder.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/board_devices.hpp"
 #include "wallar/firmware/live_imu.hpp"
 #include "wallar/firmware/live_stereo.hpp"
 #include "wallar/firmware/report.hpp"
@@ -26,9 +29,56 @@ struct RecordArgs {
   std::string from;
   std::string out;
   double duration_s = 0.0;
+  double segment_mb = 0.0;  // rotation: a new segment at this size (0: one recording)
+  double max_mb = 0.0;      // rotation: the oldest segments deleted above this (0: keep all)
   bool json = false;
   ReplayFlags flags;
 };
+
+std::uint64_t mb_to_bytes(double mb) { return static_cast<std::uint64_t>(mb * 1024.0 * 1024.0); }
+
+// The recording's writer: one EuRoC folder, or rotating segments of one when asked.
+std::unique_ptr<recording::RecordingWriter> make_writer(const RecordArgs& args,
+                                                        const RigCalibration& rig) {
+  if (args.segment_mb <= 0.0 && args.max_mb <= 0.0) {
+    std::error_code ec;
+    if (std::filesystem::exists(std::filesystem::path(args.out) / "mav0", ec)) {
+      throw_input_error(args.out, 0, "already holds a recording (mav0/); refusing to overwrite it");
+    }
+    return std::make_unique<recording::EurocWriter>(args.out, rig);
+  }
+  if (args.max_mb > 0.0 && args.segment_mb <= 0.0) {
+    throw InputError(
+        "wallar record: --max-mb needs --segment-mb (the size of the segments "
+        "that are deleted, oldest first, to stay under it)");
+  }
+  if (args.max_mb > 0.0 && args.max_mb < 2.0 * args.segment_mb) {
+    throw InputError("wallar record: --max-mb " + std::to_string(args.max_mb) +
+                     " must hold at least two segments of --segment-mb " +
+                     std::to_string(args.segment_mb));
+  }
+  recording::RotationOptions o;
+  o.segment_bytes = mb_to_bytes(args.segment_mb);
+  o.max_total_bytes = mb_to_bytes(args.max_mb);
+  return std::make_unique<recording::RotatingEurocWriter>(args.out, rig, o);
+}
+
+// The rotation's figures, when the recording rotates.
+void add_rotation(const recording::RecordingWriter& w, nlohmann::json& report, std::string& text) {
+  const auto* r = dynamic_cast<const recording::RotatingEurocWriter*>(&w);
+  if (r == nullptr) return;
+  const recording::RotationCounters& c = r->counters();
+  report["rotation"] = {{"segments_started", c.segments_started},
+                        {"segments_kept", r->segments().size()},
+                        {"segments_deleted", c.segments_deleted},
+                        {"bytes_deleted", c.bytes_deleted},
+                        {"delete_errors", c.delete_errors},
+                        {"first_kept", r->segments().front().filename().string()}};
+  text += "  rotation: " + std::to_string(c.segments_started) + " segments, " +
+          std::to_string(c.segments_deleted) + " oldest deleted under the cap (" +
+          std::to_string(c.bytes_deleted) + " bytes), kept from " +
+          r->segments().front().filename().string() + "/\n";
+}
 
 // What the recorder reports, in both outputs.
 nlohmann::json recorder_json(const source::RecorderCounters& c,
@@ -83,10 +133,12 @@ RigCalibration live_rig(const firmware::BoardConfig& board) {
   return rig;
 }
 
-int run_live_record(const RecordArgs& args, const firmware::BoardConfig& board) {
-  std::error_code ec;
-  if (std::filesystem::exists(std::filesystem::path(args.out) / "mav0", ec))
-    throw_input_error(args.out, 0, "already holds a recording (mav0/); refusing to overwrite it");
+int run_live_record(const RecordArgs& args, const firmware::BoardConfig& board_in) {
+  // The devices by their stable names and the camera modes against a calibration the board
+  // names, before anything opens: each problem one line naming its board key.
+  const firmware::BoardConfig board = firmware::check_sensor_board(
+      board_in, drivers::DeviceTree(), {"cameras", "imu"},
+      [](const std::string& line) { std::cerr << "wallar: " << line << "\n"; });
   const RigCalibration rig = live_rig(board);
   // Open the devices before creating the recording, so a missing camera leaves nothing behind;
   // the sources are handed a forwarder that reaches the recorder once it exists (before any
@@ -102,7 +154,7 @@ int run_live_record(const RecordArgs& args, const firmware::BoardConfig& board) 
   firmware::LiveStereo cameras(board, forward);
   std::unique_ptr<firmware::LiveImu> imu;
   if (board.imu.driver != "none") imu = std::make_unique<firmware::LiveImu>(board, forward);
-  recording::EurocWriter writer(args.out, rig);
+  const std::unique_ptr<recording::RecordingWriter> writer = make_writer(args, rig);
   // The bounded writer thread: the capture and IMU threads never wait for the disk; frames are
   // copied out of the V4L2 buffers at once (slots sized for the board's cameras).
   source::AsyncRecorderOptions recorder_options;
@@ -110,7 +162,7 @@ int run_live_record(const RecordArgs& args, const firmware::BoardConfig& board) 
     recorder_options.width_px[i] = board.cameras[i].width_px;
     recorder_options.height_px[i] = board.cameras[i].height_px;
   }
-  source::AsyncRecorder recorder(writer, recorder_options);
+  source::AsyncRecorder recorder(*writer, recorder_options);
   forward.to = &recorder;
   std::cerr << "wallar: recording " << cameras.description()
             << (imu ? "; " + imu->description() : std::string("; no IMU")) << " to " << args.out
@@ -177,6 +229,8 @@ int run_live_record(const RecordArgs& args, const firmware::BoardConfig& board) 
     imu_counters = drivers::format_counters(c);
     report["imu"] = {{"samples", c.samples}, {"counters", imu_counters}};
   }
+  std::string rotation_text;
+  add_rotation(*writer, report, rotation_text);
   if (args.json) {
     std::cout << report.dump(2) << "\n";
   } else {
@@ -187,7 +241,7 @@ int run_live_record(const RecordArgs& args, const firmware::BoardConfig& board) 
       std::cout << "  " << cap.camera(i).config().name << ": "
                 << drivers::format_counters(cap.camera(i).counters()) << "\n";
     if (imu) std::cout << "  imu: " << imu_counters << "\n";
-    std::cout << recorder_text(rc, recorder_options);
+    std::cout << recorder_text(rc, recorder_options) << rotation_text;
   }
   return recorder_exit_code(rc);
 }
@@ -205,33 +259,29 @@ int run_record_command(const RecordArgs& args) {
   }
   options = args.flags.apply(options);
   const recording::EurocRecording rec = recording::read_euroc(source_path);
-
-  std::error_code ec;
-  if (std::filesystem::exists(std::filesystem::path(args.out) / "mav0", ec)) {
-    throw_input_error(args.out, 0, "already holds a recording (mav0/); refusing to overwrite it");
-  }
-  recording::EurocWriter writer(args.out, rec.rig());
+  const std::unique_ptr<recording::RecordingWriter> writer = make_writer(args, rec.rig());
   // The same writer thread as live recording; replay can wait for room, so nothing is dropped,
   // and its images are heap copies already (nothing to give back early): kept by reference.
   source::AsyncRecorderOptions recorder_options;
   recorder_options.copy_frames = false;
   recorder_options.wait_when_full = true;
-  source::AsyncRecorder recorder(writer, recorder_options);
+  source::AsyncRecorder recorder(*writer, recorder_options);
   const source::ReplayStats stats =
       firmware::run_replay(rec, options, recorder, stop_requested(), s_to_ns(args.duration_s));
   const source::RecorderCounters rc = recorder.close();
+  nlohmann::json report{{"out", args.out},
+                        {"imu_rows", rc.imu_written},
+                        {"cam_rows", rc.frames_written},
+                        {"replay", firmware::to_json(stats)},
+                        {"recorder", recorder_json(rc, recorder_options)}};
+  std::string rotation_text;
+  add_rotation(*writer, report, rotation_text);
   if (args.json) {
-    std::cout << nlohmann::json{{"out", args.out},
-                                {"imu_rows", rc.imu_written},
-                                {"cam_rows", rc.frames_written},
-                                {"replay", firmware::to_json(stats)},
-                                {"recorder", recorder_json(rc, recorder_options)}}
-                     .dump(2)
-              << "\n";
+    std::cout << report.dump(2) << "\n";
   } else {
     std::cout << "recorded " << rc.imu_written << " IMU rows, " << rc.frames_written[0] << " + "
               << rc.frames_written[1] << " frames to " << args.out << "\n"
-              << firmware::to_text(stats) << recorder_text(rc, recorder_options);
+              << firmware::to_text(stats) << recorder_text(rc, recorder_options) << rotation_text;
   }
   return recorder_exit_code(rc);
 }
@@ -247,6 +297,14 @@ void add_record_command(CLI::App& app, std::function<int()>& run) {
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--duration-s", args->duration_s, "Stop after this many seconds (0 = no limit)")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--segment-mb", args->segment_mb,
+                  "Rotate: write OUT/000001, OUT/000002, ... each a whole EuRoC recording, a new "
+                  "one begun at this size in MiB")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--max-mb", args->max_mb,
+                  "With --segment-mb: delete the oldest segments while all hold more than this "
+                  "(MiB), so a long recording keeps the latest that fits")
+      ->check(CLI::PositiveNumber);
   cmd->add_flag("--json", args->json, "Print the report as JSON on stdout");
   add_replay_flags(*cmd, args->flags);
   cmd->callback([args, &run] { run = [args] { return run_record_command(*args); }; });

@@ -99,6 +99,23 @@ PY
   expect_out "40 pairs, unpaired left 0, right 0"; expect_out "imu0     491 samples"
   run record --board "$src/board/sim.yaml" --out "$tmp/copy" --fast; expect_rc 2
   expect_err "already holds a recording"
+  # Rotation: 2 MiB segments under a 5 MiB cap (the 40 pairs take ~13 MiB). The kept segments
+  # are each a recording, whole pairs only, and the last one ends with the stream.
+  run record --board "$src/board/sim.yaml" --out "$tmp/rot" --fast --segment-mb 2 --max-mb 5 \
+    --json; expect_rc 0
+  [ "$(json "d['rotation']['segments_deleted'] >= 3")" = True ] || fail "segments deleted"
+  [ "$(json "d['rotation']['segments_kept']")" = "$(ls "$tmp/rot" | wc -l)" ] || fail "kept"
+  [ "$(du -s --apparent-size -k "$tmp/rot" | cut -f1)" -le $((7 * 1024)) ] || fail "over the cap"
+  for seg in "$tmp"/rot/*; do
+    run replay "$seg" --stats --fast; expect_rc 0; expect_out "unpaired left 0, right 0"
+  done
+  last=$(ls "$tmp/rot" | tail -1)
+  [ "$(tail -1 "$tmp/rot/$last/mav0/cam0/data.csv" | cut -d, -f1)" = \
+    "$(tail -1 "$rec/mav0/cam0/data.csv" | cut -d, -f1)" ] || fail "the last segment ends early"
+  run record --board "$src/board/sim.yaml" --out "$tmp/rot" --fast --segment-mb 2; expect_rc 2
+  expect_err "already holds recording segments"
+  run record --board "$src/board/sim.yaml" --out "$tmp/rot2" --fast --max-mb 5; expect_rc 2
+  expect_err "--max-mb needs --segment-mb"
   ;;
 run_sim)
   # The appliance on the sim board at real time (the README's first command), JSON summary.
@@ -486,9 +503,14 @@ imu_bad_input)
   run imu "$tmp/e"; expect_rc 2; one_err_line; expect_err "imu0: missing folder"
   ;;
 imu_live)
-  # The live path on a machine without the board's hardware: the device is named, exit 1.
+  # The live path on a machine without the board's hardware: the start-up check names each
+  # missing IMU device with its board key, one line each (nothing of the cameras'), exit 1.
   run imu --board "$src/board/rpi5.yaml" --seconds 1 --out "$tmp/att.csv"; expect_rc 1
-  one_err_line; expect_err "/dev/i2c-1: cannot open I2C adapter"
+  expect_err "rpi5.yaml: imu.bus: /dev/i2c-1: no such device"
+  expect_err "rpi5.yaml: imu.data_ready.chip: GPIO chip 'pinctrl-rp1'"
+  expect_err "rpi5.yaml: imu.bus_recovery.sda.chip: GPIO chip 'pinctrl-rp1'"
+  [ "$(wc -l <"$tmp/err")" = 4 ] || fail "not one line per missing device: $(cat "$tmp/err")"
+  grep -q "cameras\|calibration" "$tmp/err" && fail "the IMU check named more: $(cat "$tmp/err")"
   [ -e "$tmp/att.csv" ] && fail "a failed live run left an output file"
   run imu --board "$src/board/sim.yaml"; expect_rc 2; one_err_line
   expect_err "the board names no IMU"
@@ -504,11 +526,14 @@ record_live)
     | sed -e '/^imu:/,/^display:/{/^display:/!d}' -e 's/^display:/imu:\n  driver: none\ndisplay:/' \
     > "$tmp/live.yaml"
   run record --board "$tmp/live.yaml" --out "$tmp/rec" --duration-s 1; expect_rc 1
-  one_err_line; expect_err "left /dev/v4l/by-path/platform-xhci-hcd.1-usb-0:1:1.0-video-index0: cannot open"
+  expect_err "live.yaml: cameras.left.device: /dev/v4l/by-path/platform-xhci-hcd.1-usb-0:1:1.0-video-index0: no such device"
+  expect_err "live.yaml: cameras.right.device: /dev/v4l/by-path/platform-xhci-hcd.0-usb-0:1:1.0-video-index0: no such device"
+  [ "$(wc -l <"$tmp/err")" = 2 ] || fail "not one line per missing camera: $(cat "$tmp/err")"
   [ -e "$tmp/rec" ] && fail "a failed live recording left a folder"
   # The Pi board's calibration file is the first thing missing here (bad input: exit 2).
   run record --board "$src/board/rpi5.yaml" --out "$tmp/rec" --duration-s 1; expect_rc 2
-  one_err_line; expect_err "/etc/wallar/calibration/camchain.yaml"
+  tail -n 1 "$tmp/err" | grep -qF "calibration: /etc/wallar/calibration/camchain.yaml: no such file" \
+    || fail "the last line is not the calibration's: $(cat "$tmp/err")"
   [ -e "$tmp/rec" ] && fail "a failed live recording left a folder"
   # A stereo-only calibration on a board with an IMU: refused before any device opens, naming
   # the file and what is missing (it would put gravity in cam0's axes), exit 2; each other

@@ -292,6 +292,39 @@ TEST(BoardDevices, AWrongCameraModeIsBadInputThatNamesTheKey) {
   EXPECT_EQ(rate.problems[0].line, "cameras.left.fps: 30 Hz but rig.yaml gives cam0 20 Hz");
 }
 
+// `wallar record` and `wallar imu` check the devices they open, by the same resolver, before
+// opening them; neither needs a calibration (a recording made to calibrate has none yet).
+TEST(BoardDevices, SensorCommandsCheckTheirOwnDevicesAndNeedNoCalibration) {
+  FakeTree t("pi5_sensors");
+  pi5_gpio(t, true);
+  pi5_devices(t, 640);
+  firmware::BoardConfig board = pi5_board();
+  board.calibration.reset();
+  const firmware::BoardConfig resolved =
+      firmware::check_sensor_board(board, t.tree(), {"cameras", "imu"});
+  EXPECT_EQ(resolved.imu.data_ready->chip, "/dev/gpiochip0");
+  EXPECT_EQ(resolved.imu.bus_recovery->scl->chip, "/dev/gpiochip0");
+  // The cameras gone: the IMU command does not care, the recorder names each.
+  fs::remove(fs::path(t.tree().root()) /
+             "dev/v4l/by-path/platform-xhci-hcd.0-usb-0:1:1.0-video-index0");
+  EXPECT_NO_THROW(firmware::check_sensor_board(board, t.tree(), {"imu"}));
+  std::vector<std::string> lines;
+  try {
+    firmware::check_sensor_board(board, t.tree(), {"cameras", "imu"},
+                                 [&](const std::string& l) { lines.push_back(l); });
+    FAIL() << "no throw";
+  } catch (const DeviceError& e) {  // exit 1: a device is missing
+    EXPECT_NE(std::string(e.what()).find("cameras.right.device"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(lines.empty());  // the only problem
+  // A calibration the board names is checked against the camera modes (exit 2).
+  FakeTree m("pi5_sensors_mode");
+  pi5_gpio(m, true);
+  pi5_devices(m, 752);
+  EXPECT_THROW(firmware::check_sensor_board(pi5_board(), m.tree(), {"cameras", "imu"}), InputError);
+  EXPECT_NO_THROW(firmware::check_sensor_board(pi5_board(), m.tree(), {"imu"}));
+}
+
 TEST(BoardDevices, MissingDevicesAreEachOneLineWithTheirKeyAndTheBoardNoMore) {
   firmware::BoardConfig board = pi5_board();
   FakeTree t("pi5_missing");

@@ -90,13 +90,12 @@ inline RigCalibration small_rig() {
   return rig;
 }
 
-/// Writes a recording of `pairs` stereo frames (t = 1 s + k * 50 ms) and 10 IMU rows per frame
-/// with seeded random content; returns its root.
-inline fs::path write_small_recording(const fs::path& root, int pairs = 4, unsigned seed = 7) {
+/// Writes `pairs` stereo frames (t = 1 s + k * 50 ms), each after its 10 IMU rows, with seeded
+/// random content, and closes the writer.
+inline void write_small_stream(recording::RecordingWriter& writer, int pairs, unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_int_distribution<int> pixel(0, 255);
   std::normal_distribution<double> noise(0.0, 0.01);
-  recording::EurocWriter writer(root, small_rig());
   const TimeNs t0 = kNsPerS;
   for (int k = 0; k < pairs; ++k) {
     for (int j = 0; j < 10; ++j) {
@@ -117,6 +116,11 @@ inline fs::path write_small_recording(const fs::path& root, int pairs = 4, unsig
     writer.write_stereo(f);
   }
   writer.close();
+}
+/// The same as a recording; returns its root.
+inline fs::path write_small_recording(const fs::path& root, int pairs = 4, unsigned seed = 7) {
+  recording::EurocWriter writer(root, small_rig());
+  write_small_stream(writer, pairs, seed);
   return root;
 }
 

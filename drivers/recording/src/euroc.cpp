@@ -451,6 +451,7 @@ void EurocWriter::write_imu(const ImuSample& s) {
   }
   row += '\n';
   write_all(imu_fd_, row, mav0_ / "imu0" / "data.csv");
+  bytes_ += row.size();
   ++imu_rows_;
 }
 
@@ -462,9 +463,13 @@ void EurocWriter::write_camera(int cam, const CameraFrame& frame) {
   const fs::path tmp = dir / "data" / (name + ".part");
   save_png_gray(tmp, frame.image, options_.fast_png);
   std::error_code ec;
+  const std::uint64_t png_bytes = fs::file_size(tmp, ec);
+  if (!ec) bytes_ += png_bytes;
   fs::rename(tmp, dir / "data" / name, ec);
   if (ec) throw_input_error(tmp.string(), 0, "cannot rename: " + ec.message());
-  write_all(cam_fd_[idx], std::to_string(frame.t_ns) + "," + name + "\n", dir / "data.csv");
+  const std::string row = std::to_string(frame.t_ns) + "," + name + "\n";
+  write_all(cam_fd_[idx], row, dir / "data.csv");
+  bytes_ += row.size();
   ++cam_rows_[idx];
 }
 

@@ -61,7 +61,7 @@ std::string one_line(std::string text) {
 }  // namespace
 
 struct AsyncRecorder::State {
-  State(recording::EurocWriter& w, const AsyncRecorderOptions& o)
+  State(recording::RecordingWriter& w, const AsyncRecorderOptions& o)
       : writer(w),
         options(o),
         imu(std::max<std::size_t>(o.imu_capacity, 1)),
@@ -77,7 +77,7 @@ struct AsyncRecorder::State {
           return slot;
         }) {}
 
-  recording::EurocWriter& writer;
+  recording::RecordingWriter& writer;
   const AsyncRecorderOptions options;
   SpscRing<ImuSample> imu;
   SpscRing<FrameSlot> frames;
@@ -254,7 +254,8 @@ struct AsyncRecorder::State {
   }
 };
 
-AsyncRecorder::AsyncRecorder(recording::EurocWriter& writer, const AsyncRecorderOptions& options)
+AsyncRecorder::AsyncRecorder(recording::RecordingWriter& writer,
+                             const AsyncRecorderOptions& options)
     : state_(std::make_unique<State>(writer, options)) {
   state_->thread = std::thread([s = state_.get()] { s->run(); });
 }

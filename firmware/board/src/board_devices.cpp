@@ -212,6 +212,37 @@ BoardCheck check_board(const BoardConfig& board, const drivers::DeviceTree& tree
   return check;
 }
 
+BoardConfig check_sensor_board(const BoardConfig& board, const drivers::DeviceTree& tree,
+                               std::initializer_list<std::string_view> keys,
+                               const std::function<void(const std::string&)>& log) {
+  if (board.source != BoardConfig::Source::kLive) return board;
+  BoardCheck all;
+  if (board.calibration) {
+    const fs::path p = calibration_in(board, tree);
+    std::error_code ec;
+    if (fs::exists(p, ec)) {
+      check_rig(board, recording::read_rig_calibration(p), board.calibration->string(), &all);
+    }
+  }
+  BoardConfig out = resolve_board_devices(board, tree, &all);
+  const bool cameras = std::find(keys.begin(), keys.end(), "cameras") != keys.end();
+  const auto wanted = [&](const std::string& line) {
+    if (line.rfind("calibration: ", 0) == 0) {
+      // A calibration the board names must be there where cameras are recorded (it goes into
+      // the recording's sensor files); none, or one without the camera-IMU transform, is fine.
+      return cameras && line.find(": no such file") != std::string::npos;
+    }
+    return std::any_of(keys.begin(), keys.end(),
+                       [&](std::string_view k) { return line.rfind(k, 0) == 0; });
+  };
+  BoardCheck check;
+  for (const BoardCheck::Problem& p : all.problems) {
+    if (wanted(p.line)) check.problems.push_back(p);
+  }
+  throw_if_failed(board, check, log);
+  return out;
+}
+
 void throw_if_failed(const BoardConfig& board, const BoardCheck& check,
                      const std::function<void(const std::string&)>& log) {
   if (check.ok()) return;

@@ -16,7 +16,9 @@
 
 #include <filesystem>
 #include <functional>
+#include <initializer_list>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "wallar/core/calibration.hpp"
@@ -63,6 +65,17 @@ void check_rig(const BoardConfig& board, const RigCalibration& rig, const std::s
 /// calibration read (where calibration_in() says) and checked against the board (check_rig),
 /// then every device resolved. A replay board: its recording is there.
 BoardCheck check_board(const BoardConfig& board, const drivers::DeviceTree& tree);
+
+/// The start-up check of a command that opens some of a live board's sensors without
+/// tracking (`wallar record`: cameras and IMU; `wallar imu`: the IMU): the devices under the
+/// board keys that start with one of `keys` ("cameras", "imu") resolved, and, when the board
+/// names a calibration, the camera modes checked against it. Neither a calibration nor a
+/// camera-IMU transform is required: a recording made to calibrate has neither yet. Throws as
+/// throw_if_failed; returns the board as the product opens it. A replay board is returned as
+/// it is.
+BoardConfig check_sensor_board(const BoardConfig& board, const drivers::DeviceTree& tree,
+                               std::initializer_list<std::string_view> keys,
+                               const std::function<void(const std::string&)>& log = {});
 
 /// Throws the check's first problem with the board file's name (the first bad-input problem
 /// as InputError when there is one, else DeviceError), after `log` said each other problem on

@@ -148,7 +148,22 @@ struct EurocWriterOptions {
   bool fast_png = false;
 };
 
-class EurocWriter {
+/// Where recorded samples go: one EuRoC recording (EurocWriter) or a rotation of them
+/// (RotatingEurocWriter, rotating_writer.hpp). Threading: one thread uses a writer.
+class RecordingWriter {
+ public:
+  virtual ~RecordingWriter() = default;
+  virtual void write_imu(const ImuSample& sample) = 0;
+  virtual void write_camera(int cam, const CameraFrame& frame) = 0;
+  void write_stereo(const StereoFrame& frame) {
+    write_camera(0, frame.left);
+    write_camera(1, frame.right);
+  }
+  /// Flushes and fsyncs every file; further writes are errors.
+  virtual void close() = 0;
+};
+
+class EurocWriter final : public RecordingWriter {
  public:
   /// Creates ROOT/mav0/... and writes body.yaml and the sensor.yaml files.
   EurocWriter(const std::filesystem::path& root, const RigCalibration& rig,
@@ -157,17 +172,16 @@ class EurocWriter {
   EurocWriter(const EurocWriter&) = delete;
   EurocWriter& operator=(const EurocWriter&) = delete;
 
-  void write_imu(const ImuSample& sample);
-  void write_camera(int cam, const CameraFrame& frame);
-  void write_stereo(const StereoFrame& frame) {
-    write_camera(0, frame.left);
-    write_camera(1, frame.right);
-  }
-  /// Flushes and fsyncs every file; further writes are errors.
-  void close();
+  void write_imu(const ImuSample& sample) override;
+  void write_camera(int cam, const CameraFrame& frame) override;
+  using RecordingWriter::write_stereo;
+  void close() override;
 
   [[nodiscard]] std::size_t imu_written() const { return imu_rows_; }
   [[nodiscard]] std::size_t frames_written(int cam) const { return cam_rows_[cam]; }
+  /// Bytes of rows and images written (the small sensor files aside).
+  [[nodiscard]] std::uint64_t bytes_written() const { return bytes_; }
+  [[nodiscard]] const std::filesystem::path& mav0() const { return mav0_; }
 
  private:
   std::filesystem::path mav0_;
@@ -176,6 +190,7 @@ class EurocWriter {
   std::array<int, 2> cam_fd_{-1, -1};  //!< camN/data.csv, O_APPEND
   std::size_t imu_rows_ = 0;
   std::array<std::size_t, 2> cam_rows_{0, 0};
+  std::uint64_t bytes_ = 0;
   bool closed_ = false;
 };
 

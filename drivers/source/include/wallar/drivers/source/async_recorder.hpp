@@ -11,7 +11,7 @@
 /// ring drops the sample and counts it (per stream); nothing blocks unless wait_when_full is
 /// set (replay, where waiting loses nothing).
 ///
-/// The writer thread ("recorder") drains both rings into an EurocWriter in time order (the
+/// The writer thread ("recorder") drains both rings into a RecordingWriter in time order (the
 /// older ring head first, IMU first on ties; a head that is alone is written at once, so the
 /// merge does not wait for a late stream) and sleeps ~2 ms when both are empty. The first write
 /// failure (disk full, EIO, ...) is kept as one line; from then on the writer writes nothing
@@ -23,7 +23,7 @@
 /// They do not block (unless wait_when_full), allocate or throw. counters() may be called from
 /// any thread at any time (each counter is read atomically; the set is not one snapshot).
 /// close() and the destructor belong to the owning thread; samples that arrive after close()
-/// began are dropped and counted. The EurocWriter is used by the writer thread only, from
+/// began are dropped and counted. The writer is used by the writer thread only, from
 /// construction until close() returns, and must outlive the recorder.
 #pragma once
 
@@ -75,7 +75,8 @@ struct RecorderCounters {
 class AsyncRecorder final : public SensorSink, public drivers::ImuSampleSink {
  public:
   /// Allocates the rings (and slot buffers) and starts the writer thread.
-  explicit AsyncRecorder(recording::EurocWriter& writer, const AsyncRecorderOptions& options = {});
+  explicit AsyncRecorder(recording::RecordingWriter& writer,
+                         const AsyncRecorderOptions& options = {});
   /// Closes (drains, fsyncs, joins) if close() was not called.
   ~AsyncRecorder() override;
   AsyncRecorder(const AsyncRecorder&) = delete;
