@@ -151,6 +151,10 @@ LogThread::LogThread(LogRing& ring, std::function<void(const std::string&)> sink
     while (!stop_.load(std::memory_order_acquire)) {
       ring_.wakeup().wait_for(100 * kNsPerMs);
       drain(monotonic_now_ns());
+      const std::lock_guard<std::mutex> lock(report_mutex_);
+      if (report_request_ != nullptr && report_request_->exchange(false) && make_report_) {
+        report_out_(make_report_());
+      }
     }
     drain(monotonic_now_ns());
     if (held_back_ > 0) {
@@ -167,6 +171,14 @@ void LogThread::stop() {
   stop_.store(true, std::memory_order_release);
   ring_.wakeup().notify();
   thread_->join();
+}
+
+void LogThread::set_report(std::atomic<bool>* request, std::function<std::string()> make,
+                           std::function<void(const std::string&)> out) {
+  const std::lock_guard<std::mutex> lock(report_mutex_);
+  report_request_ = request;
+  make_report_ = std::move(make);
+  report_out_ = std::move(out);
 }
 
 void LogThread::drain(TimeNs now_ns) {

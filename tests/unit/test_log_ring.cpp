@@ -5,7 +5,9 @@
 /// a full ring dropping and counting, and the log thread's rate limit saying what it held back.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <mutex>
 #include <thread>
@@ -122,6 +124,56 @@ TEST(LogRing, TheLogThreadHoldsBackWhatExceedsItsRate) {
   EXPECT_EQ(lines[9], "flap 9");
   EXPECT_EQ(lines[10], "(40 log lines held back)");
   EXPECT_EQ(thread.suppressed(), 40u);
+}
+
+// The SIGUSR1 stats table: the supervisor (SCHED_FIFO) only sets a flag; the log thread
+// formats and writes the report, once per request, and not after it was withdrawn.
+TEST(LogRing, AReportIsMadeOnTheLogThreadOncePerRequest) {
+  LogRing ring(16);
+  LogThread thread(ring, [](const std::string&) {}, ThreadSpec{"log", 0, -1, 0}, {});
+  std::atomic<bool> request{false};
+  std::mutex m;
+  std::vector<std::string> out;
+  std::vector<std::thread::id> made_on;
+  thread.set_report(
+      &request,
+      [&] {
+        const std::lock_guard lock(m);
+        made_on.push_back(std::this_thread::get_id());
+        return "table " + std::to_string(made_on.size());
+      },
+      [&](const std::string& t) {
+        const std::lock_guard lock(m);
+        out.push_back(t);
+      });
+  const auto wait_for = [&](std::size_t n) {
+    for (int i = 0; i < 200; ++i) {
+      {
+        const std::lock_guard lock(m);
+        if (out.size() >= n) return;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  };
+  request.store(true);
+  wait_for(1);
+  std::this_thread::sleep_for(std::chrono::milliseconds(250));  // two more wake-ups
+  {
+    const std::lock_guard lock(m);
+    ASSERT_EQ(out.size(), 1u);
+    EXPECT_EQ(out[0], "table 1");
+    EXPECT_NE(made_on[0], std::this_thread::get_id());
+  }
+  EXPECT_FALSE(request.load());
+  request.store(true);
+  wait_for(2);
+  thread.set_report(nullptr, {}, {});
+  request.store(true);
+  std::this_thread::sleep_for(std::chrono::milliseconds(250));
+  thread.stop();
+  const std::lock_guard lock(m);
+  EXPECT_EQ(out.size(), 2u);
+  EXPECT_TRUE(request.load());  // withdrawn: nobody takes the request
 }
 
 }  // namespace

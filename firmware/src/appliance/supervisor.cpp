@@ -329,6 +329,17 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   }
   if (view) watched.push_back({"render", &view->heartbeat(), 2 * kNsPerS});
 
+  // SIGUSR1's stats table: formatted and written by the log thread (SCHED_OTHER), never on
+  // this SCHED_FIFO loop; withdrawn before the modules it reads are torn down.
+  log_thread.set_report(
+      stats_request,
+      [&] { return format_stats_table(live_rows(monotonic_now_ns() - t_start), stage_rows()); },
+      [](const std::string& table) { std::fprintf(stderr, "%s", table.c_str()); });
+  struct WithdrawReport {  // also when an exception leaves this scope
+    LogThread& log;
+    ~WithdrawReport() { log.set_report(nullptr, {}, {}); }
+  } withdraw_report{log_thread};
+
   report.rss_kb.reserve(1 << 16);
   TimeNs next_rss_ns = t_start;
   PeriodicTimer supervisor(options.supervisor_period_ns);
@@ -380,12 +391,6 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
         break;
     }
     if (report.interrupted) break;
-    if (stats_request != nullptr && stats_request->exchange(false)) {
-      tl_allocation_counter = nullptr;  // a request, not the fixed-rate path
-      const std::string table = format_stats_table(live_rows(now - t_start), stage_rows());
-      std::fprintf(stderr, "%s", table.c_str());
-      tl_allocation_counter = &supervisor_allocs;
-    }
     bool any_stalled = false;
     for (Watched& w : watched) {
       const bool stalled = w.heartbeat->silent_ns(now) > w.limit_ns;
@@ -403,6 +408,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
     if (!any_stalled && notifier.watchdog_due(now)) notifier.watchdog(now);
   }
   tl_allocation_counter = nullptr;
+  log_thread.set_report(nullptr, {}, {});
   const bool supervisor_fifo = supervisor_priority && supervisor_priority->placement().fifo;
   supervisor_priority.reset();
   notifier.stopping();

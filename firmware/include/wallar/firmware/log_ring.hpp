@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "wallar/core/time.hpp"
@@ -120,6 +121,13 @@ class LogThread {
   LogThread& operator=(const LogThread&) = delete;
   /// Drains what is left and ends the thread (once).
   void stop();
+  /// A report made on this thread when asked: whenever *request is found set (by anyone, a
+  /// signal handler included; polled at each wake-up, at least every 100 ms) it is cleared,
+  /// `make` formats the report and `out` writes it, so that a SCHED_FIFO thread never formats
+  /// it (the SIGUSR1 stats table). set_report(nullptr, {}, {}) before what `make` reads is
+  /// gone: it waits for a report being made to finish.
+  void set_report(std::atomic<bool>* request, std::function<std::string()> make,
+                  std::function<void(const std::string&)> out);
   [[nodiscard]] std::uint64_t suppressed() const {
     return suppressed_total_.load(std::memory_order_relaxed);
   }
@@ -137,6 +145,10 @@ class LogThread {
   std::uint64_t dropped_said_ = 0;
   std::atomic<std::uint64_t> suppressed_total_{0};
   std::atomic<bool> stop_{false};
+  std::mutex report_mutex_;  // the supervisor sets, the log thread runs
+  std::atomic<bool>* report_request_ = nullptr;
+  std::function<std::string()> make_report_;
+  std::function<void(const std::string&)> report_out_;
   std::unique_ptr<RtThread> thread_;
 };
 
