@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <optional>
 #include <stdexcept>
@@ -41,8 +43,8 @@ std::string find_usb_tty(const std::string& usb_id) {
   throw DeviceError("USB device " + usb_id + " not found (plugged in?)");
 }
 
-LiveImu::LiveImu(const BoardConfig& board, drivers::ImuSampleSink& sink)
-    : parts_(std::make_unique<Parts>()) {
+LiveImu::LiveImu(const BoardConfig& board, drivers::ImuSampleSink& sink, LogRing* ring)
+    : parts_(std::make_unique<Parts>()), ring_(ring) {
   const ImuConfig& imu = board.imu;
   if (imu.driver == "icm20948") {
     parts_->adapter = std::make_unique<drivers::LinuxI2cAdapter>(imu.bus);
@@ -75,7 +77,9 @@ LiveImu::LiveImu(const BoardConfig& board, drivers::ImuSampleSink& sink)
                                 imu.data_ready->active_low},
           "wallar-imu-drdy");
     }
-    parts_->driver = std::make_unique<drivers::Icm20948>(*parts_->bus, config, sink);
+    auto driver = std::make_unique<drivers::Icm20948>(*parts_->bus, config, sink);
+    nominal_rate_hz_ = driver->rate_hz();
+    parts_->driver = std::move(driver);
     char addr[8];
     std::snprintf(addr, sizeof addr, "0x%02x", imu.address);
     description_ = "icm20948 on " + imu.bus + " @" + addr;
@@ -96,6 +100,7 @@ LiveImu::LiveImu(const BoardConfig& board, drivers::ImuSampleSink& sink)
     config.rate_hz = std::min(imu.rate_hz, 100.0);
     auto driver = std::make_unique<drivers::Bno055Uart>(config, sink);
     parts_->bno055 = driver.get();
+    nominal_rate_hz_ = config.rate_hz;
     parts_->driver = std::move(driver);
     description_ = "bno055 on " + config.device + " at " + std::to_string(config.baud) + " baud";
   } else {
@@ -110,10 +115,16 @@ const drivers::ImuDriver& LiveImu::driver() const { return *parts_->driver; }
 void LiveImu::run(TimeNs until_ns, const std::atomic<bool>& stop) {
   drivers::ImuDriver& driver = *parts_->driver;
   std::optional<TimeNs> edge_ns;
+  StartupRate rate(kRateWindowNs);
   while (!stop.load(std::memory_order_relaxed)) {
     TimeNs now_ns = monotonic_now_ns();
     heartbeat_.beat(now_ns);
     if (now_ns >= until_ns) return;
+    if (!rate.done()) {
+      if (const std::optional<double> hz = rate.update(now_ns, driver.counters().samples)) {
+        report_rate(*hz);
+      }
+    }
     const TimeNs wake_ns = std::min(driver.step(now_ns, edge_ns), until_ns);
     edge_ns.reset();
     // What to wait on: the data-ready line, or the serial port's bytes.
@@ -135,6 +146,61 @@ void LiveImu::run(TimeNs until_ns, const std::atomic<bool>& stop) {
       edge_ns = parts_->data_ready->wait_edge(0);  // pending: returns at once with its stamp
     }
     // n < 0 (EINTR) or a timeout: step again, the driver decides what is due.
+  }
+}
+
+std::optional<double> StartupRate::update(TimeNs now_ns, std::uint64_t samples) {
+  if (done_) return std::nullopt;
+  if (t_start_ns_ < 0) t_start_ns_ = now_ns;
+  if (t_first_ns_ < 0 && samples > 0) {
+    t_first_ns_ = now_ns;
+    samples_at_first_ = samples;
+  }
+  if (t_first_ns_ >= 0 && now_ns - t_first_ns_ >= window_ns_) {
+    done_ = true;
+    return static_cast<double>(samples - samples_at_first_) / ns_to_s(now_ns - t_first_ns_);
+  }
+  if (t_first_ns_ < 0 && now_ns - t_start_ns_ >= window_ns_) {
+    done_ = true;
+    return 0.0;
+  }
+  return std::nullopt;
+}
+
+void LiveImu::report_rate(double measured_hz) const {
+  const double window_s = ns_to_s(kRateWindowNs);
+  static constexpr const char* kLine = "imu rate over %g s: %.1f Hz (nominal %g Hz)";
+  static constexpr const char* kOff =
+      "WARNING: the IMU delivers %.1f Hz, not its nominal %g Hz: samples are being lost (check "
+      "the data-ready line, the bus speed and the imu thread's CPU)";
+  static constexpr const char* kNone =
+      "WARNING: the IMU delivered no sample in its first %g s (driver state %s): check its "
+      "wiring and the board's imu section";
+  const bool none = measured_hz <= 0.0;
+  const bool off = !none && !rate_ok(measured_hz, nominal_rate_hz_);
+  const char* state = drivers::to_string(parts_->driver->state()).data();  // a literal
+  if (ring_ != nullptr) {  // numbers only on this thread: the log thread formats them
+    if (none) {
+      ring_->post(kNone, {window_s, state});
+      return;
+    }
+    ring_->post(kLine, {window_s, measured_hz, nominal_rate_hz_});
+    if (off) ring_->post(kOff, {measured_hz, nominal_rate_hz_});
+    return;
+  }
+  if (none) {
+    std::fprintf(stderr, "wallar: ");
+    std::fprintf(stderr, kNone, window_s, state);
+    std::fprintf(stderr, "\n");
+    return;
+  }
+  std::fprintf(stderr, "wallar: ");
+  std::fprintf(stderr, kLine, window_s, measured_hz, nominal_rate_hz_);
+  std::fprintf(stderr, "\n");
+  if (off) {
+    std::fprintf(stderr, "wallar: ");
+    std::fprintf(stderr, kOff, measured_hz, nominal_rate_hz_);
+    std::fprintf(stderr, "\n");
   }
 }
 

@@ -119,7 +119,66 @@ std::string LiveStereo::description() const {
 }
 
 void LiveStereo::run(TimeNs until_ns, const std::atomic<bool>& stop) {
-  parts_->capture->run(until_ns, stop);
+  drivers::StereoCapture& capture = *parts_->capture;
+  const TimeNs t_start_ns = parts_->sys->now_ns();
+  bool assessed = false;
+  while (!stop.load(std::memory_order_acquire)) {
+    const TimeNs now_ns = parts_->sys->now_ns();
+    if (now_ns >= until_ns) break;
+    capture.run_once(50 * kNsPerMs);  // bounded so a stop request is seen within 50 ms
+    if (!assessed && now_ns - t_start_ns >= kSyncWindowNs) {
+      assessed = true;
+      report_sync();
+    }
+  }
+  capture.stop();
+}
+
+void LiveStereo::report_sync() {
+  const drivers::StereoCapture& capture = *parts_->capture;
+  const sync::SyncAssessment a = sync::assess_sync(capture.pairing(), capture.tolerance_ns());
+  const double window_s = ns_to_s(kSyncWindowNs);
+  const char* rig = parts_->trigger ? "triggered cameras" : "free-running cameras (no trigger)";
+  // Numbers only on this thread: with a ring the log thread formats them.
+  static constexpr const char* kLine =
+      "stereo sync over the first %g s: %.1f %% of %lld frames paired, skew mean %.1f ms, "
+      "max %.1f ms (tolerance %g ms)";
+  static constexpr const char* kLowPairing =
+      "WARNING: only %.1f %% of the frames pair (under 90 %%): check that both cameras run at "
+      "the board's rate and that sync_tolerance_ms suits it";
+  static constexpr const char* kHighSkew =
+      "WARNING: stereo pairs up to %.1f ms apart (over half the %g ms tolerance) from %s: the "
+      "tracker triangulates unsynchronised images, depth errs with motion";
+  static constexpr const char* kFreeRunning =
+      "%s: the tracker triangulates images up to %.1f ms apart";
+  const auto frames = static_cast<long long>(a.frames);
+  if (parts_->ring != nullptr) {
+    LogRing& ring = *parts_->ring;
+    ring.post(kLine,
+              {window_s, a.paired_percent, frames, a.mean_skew_ms, a.max_skew_ms, a.tolerance_ms});
+    if (a.low_pairing) ring.post(kLowPairing, {a.paired_percent});
+    if (a.high_skew) {
+      ring.post(kHighSkew, {a.max_skew_ms, a.tolerance_ms, rig});
+    } else if (!parts_->trigger) {
+      ring.post(kFreeRunning, {rig, a.max_skew_ms});
+    }
+    return;
+  }
+  char buf[320];
+  std::snprintf(buf, sizeof buf, kLine, window_s, a.paired_percent, frames, a.mean_skew_ms,
+                a.max_skew_ms, a.tolerance_ms);
+  parts_->log(std::string("wallar: ") + buf);
+  if (a.low_pairing) {
+    std::snprintf(buf, sizeof buf, kLowPairing, a.paired_percent);
+    parts_->log(std::string("wallar: ") + buf);
+  }
+  if (a.high_skew) {
+    std::snprintf(buf, sizeof buf, kHighSkew, a.max_skew_ms, a.tolerance_ms, rig);
+    parts_->log(std::string("wallar: ") + buf);
+  } else if (!parts_->trigger) {
+    std::snprintf(buf, sizeof buf, kFreeRunning, rig, a.max_skew_ms);
+    parts_->log(std::string("wallar: ") + buf);
+  }
 }
 
 }  // namespace wallar::firmware

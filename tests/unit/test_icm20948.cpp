@@ -12,6 +12,7 @@
 #include "imu_rig.hpp"
 #include "wallar/drivers/imu/icm20948.hpp"
 #include "wallar/drivers/imu/icm20948_registers.hpp"
+#include "wallar/firmware/live_imu.hpp"
 
 namespace wallar::test {
 namespace {
@@ -586,6 +587,36 @@ TEST(Icm20948Driver, BusCostPerSampleFromTheSimulatorsCounters) {
           every, mag ? 1 : 0, c.transactions_per_sample, c.bus_us_per_sample, 100.0 * c.bus_load);
     }
   }
+}
+
+// The imu thread's start-up check (firmware::StartupRate) on the driver: the nominal rate
+// from a healthy chip; well under it when the thread keeps stalling and the FIFO overflows;
+// nothing at all from a chip that never answers.
+double startup_rate(ImuRig& rig, DurationNs stall_every_ns) {
+  firmware::StartupRate rate(firmware::LiveImu::kRateWindowNs);
+  for (TimeNs t = 0; t <= 5 * kNsPerS; t += kNsPerMs) {
+    if (stall_every_ns > 0 && t % stall_every_ns == 0 && t > 0) rig.stall_until = t + 60 * kNsPerMs;
+    rig.run_until(t);
+    if (const auto hz = rate.update(t, rig.driver.counters().samples)) return *hz;
+  }
+  ADD_FAILURE() << "no rate after 5 s";
+  return -1.0;
+}
+
+TEST(Icm20948Driver, TheStartupRateCheckSeesAChipThatLosesSamples) {
+  ImuRig healthy(Icm20948::Config{}, motion);
+  const double hz = startup_rate(healthy, 0);
+  EXPECT_NEAR(hz, healthy.driver.rate_hz(), 3.0);
+  EXPECT_TRUE(firmware::rate_ok(hz, healthy.driver.rate_hz()));
+  ImuRig stalling(Icm20948::Config{}, motion);
+  const double lossy = startup_rate(stalling, 100 * kNsPerMs);  // 60 ms of every 100 asleep
+  EXPECT_GT(stalling.driver.counters().fifo_overflow, 10u);
+  EXPECT_FALSE(firmware::rate_ok(lossy, stalling.driver.rate_hz())) << lossy;
+  EXPECT_GT(lossy, 0.0);
+  ImuRig dead(Icm20948::Config{}, motion);
+  dead.sim.set_unplugged(true);
+  EXPECT_EQ(startup_rate(dead, 0), 0.0);
+  EXPECT_FALSE(firmware::rate_ok(0.0, dead.driver.rate_hz()));
 }
 
 TEST(Icm20948Driver, NothingHappensBeforeTheFirstStepAndCountersPrint) {

@@ -36,6 +36,28 @@ TEST(StereoPairer, PairsWithinToleranceInEitherArrivalOrder) {
   EXPECT_EQ(p.stats().max_abs_skew_ns, 3 * kNsPerMs);
 }
 
+TEST(StereoPairer, SyncAssessmentWarnsUnderNinetyPercentPairedOrAboveHalfTheTolerance) {
+  sync::PairingStats s;
+  s.pairs = 90;
+  s.unpaired = {10, 10};  // 180 of 200 frames paired
+  s.sum_abs_skew_ns = 90 * 2e6;
+  s.max_abs_skew_ns = 4 * kNsPerMs;
+  sync::SyncAssessment a = sync::assess_sync(s, 8 * kNsPerMs);
+  EXPECT_EQ(a.frames, 200u);
+  EXPECT_DOUBLE_EQ(a.paired_percent, 90.0);
+  EXPECT_DOUBLE_EQ(a.mean_skew_ms, 2.0);
+  EXPECT_DOUBLE_EQ(a.max_skew_ms, 4.0);
+  EXPECT_FALSE(a.warn());  // 90 % and exactly half the tolerance: both still fine
+  s.unpaired = {11, 10};
+  EXPECT_TRUE(sync::assess_sync(s, 8 * kNsPerMs).low_pairing);
+  s.unpaired = {0, 0};
+  s.max_abs_skew_ns = 4 * kNsPerMs + 1;
+  a = sync::assess_sync(s, 8 * kNsPerMs);
+  EXPECT_TRUE(a.high_skew);
+  EXPECT_FALSE(a.low_pairing);
+  EXPECT_TRUE(sync::assess_sync(sync::PairingStats{}, 8 * kNsPerMs).low_pairing);  // no frames
+}
+
 TEST(StereoPairer, CountsAndReturnsFramesThatFindNoPartner) {
   sync::StereoPairer p(5 * kNsPerMs);
   (void)p.push(0, frame_at(100 * kNsPerMs));

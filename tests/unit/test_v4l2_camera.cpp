@@ -517,5 +517,68 @@ TEST(LiveStereoTeardown, FramesHeldPastTheCapturesEndUnmapThroughTheSystemThatMa
   EXPECT_EQ(sys.open_fds(), 0);
 }
 
+// Two free-running cameras: after the first 3 s the capture says how well they pair and how
+// far apart the images it pairs are, warning under 90 % paired or above half the tolerance.
+struct SyncRun {
+  std::vector<std::string> lines;   // without a log ring: the log function's lines
+  std::vector<std::string> posted;  // with one: the records, formatted by the log thread's code
+};
+SyncRun run_free_running(DurationNs phase_ns, double tolerance_ms, bool ring) {
+  FakeV4l2 sys;
+  FakeCameraSpec late;
+  late.phase_ns = phase_ns;
+  sys.add_device("/dev/video0");
+  sys.add_device("/dev/video2", late);
+  firmware::BoardConfig board;
+  board.source = firmware::BoardConfig::Source::kLive;
+  board.cameras[0] = {"/dev/video0", "", 64, 48, 30.0, "GREY"};
+  board.cameras[1] = {"/dev/video2", "", 64, 48, 30.0, "GREY"};
+  board.sync_tolerance_ms = tolerance_ms;
+  Sink sink;
+  SyncRun out;
+  firmware::LogRing log_ring(64);
+  {
+    firmware::LiveStereo live(
+        board, sink, [&](const std::string& l) { out.lines.push_back(l); }, sys,
+        ring ? &log_ring : nullptr);
+    const std::atomic<bool> stop{false};
+    live.run(sys.now_ns() + 4 * kNsPerS, stop);
+  }
+  firmware::LogRecord r;
+  while (log_ring.pop(r)) out.posted.push_back(firmware::format_log_record(r));
+  return out;
+}
+
+TEST(LiveStereoSync, FreeRunningCamerasAreMeasuredAtStartAndWarnedAbout) {
+  // 4 ms apart, 8 ms tolerance: all pair, the skew is said, no warning.
+  const SyncRun good = run_free_running(4 * kNsPerMs, 8.0, false);
+  ASSERT_EQ(good.lines.size(), 2u);
+  EXPECT_EQ(good.lines[0].substr(0, 53), "wallar: stereo sync over the first 3 s: 100.0 % of 18");
+  EXPECT_NE(good.lines[0].find("frames paired, skew mean 4.0 ms, max 4.0 ms (tolerance 8 ms)"),
+            std::string::npos)
+      << good.lines[0];
+  EXPECT_EQ(good.lines[1],
+            "wallar: free-running cameras (no trigger): the tracker triangulates images up to "
+            "4.0 ms apart");
+  // 6 ms apart with the same tolerance: over half of it.
+  const SyncRun skewed = run_free_running(6 * kNsPerMs, 8.0, false);
+  ASSERT_EQ(skewed.lines.size(), 2u);
+  EXPECT_EQ(skewed.lines[1],
+            "wallar: WARNING: stereo pairs up to 6.0 ms apart (over half the 8 ms tolerance) "
+            "from free-running cameras (no trigger): the tracker triangulates unsynchronised "
+            "images, depth errs with motion");
+  // 10 ms apart, 5 ms tolerance: nothing pairs.
+  const SyncRun none = run_free_running(10 * kNsPerMs, 5.0, false);
+  ASSERT_EQ(none.lines.size(), 3u);
+  EXPECT_NE(none.lines[0].find(" 0.0 % of "), std::string::npos) << none.lines[0];
+  EXPECT_EQ(none.lines[1].substr(0, 49), "wallar: WARNING: only 0.0 % of the frames pair (u");
+  // On the appliance (a log ring): the same lines, as records the log thread formats.
+  const SyncRun posted = run_free_running(6 * kNsPerMs, 8.0, true);
+  EXPECT_TRUE(posted.lines.empty());
+  ASSERT_EQ(posted.posted.size(), 2u);
+  EXPECT_EQ("wallar: " + posted.posted[0], skewed.lines[0]);
+  EXPECT_EQ("wallar: " + posted.posted[1], skewed.lines[1]);
+}
+
 }  // namespace
 }  // namespace wallar::test

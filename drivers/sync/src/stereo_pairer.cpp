@@ -58,4 +58,19 @@ std::array<std::optional<CameraFrame>, 2> StereoPairer::flush() {
   return out;
 }
 
+SyncAssessment assess_sync(const PairingStats& stats, DurationNs tolerance_ns) {
+  SyncAssessment a;
+  a.frames = 2 * stats.pairs + stats.unpaired[0] + stats.unpaired[1];
+  a.paired_percent =
+      a.frames > 0 ? 100.0 * static_cast<double>(2 * stats.pairs) / static_cast<double>(a.frames)
+                   : 0.0;
+  a.mean_skew_ms = stats.mean_abs_skew_ns() * 1e-6;
+  a.max_skew_ms = static_cast<double>(stats.max_abs_skew_ns) * 1e-6;
+  a.tolerance_ms = static_cast<double>(tolerance_ns) * 1e-6;
+  a.low_pairing = a.paired_percent < 90.0;
+  a.high_skew =
+      static_cast<double>(stats.max_abs_skew_ns) > 0.5 * static_cast<double>(tolerance_ns);
+  return a;
+}
+
 }  // namespace wallar::sync

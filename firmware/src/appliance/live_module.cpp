@@ -16,7 +16,7 @@ void LiveModule::start(source::SensorSink& sink, drivers::ImuSampleSink& imu_sin
   // Devices open here, before any thread: a missing one is an error at start.
   cameras_ = std::make_unique<LiveStereo>(board_, sink, LiveStereo::Log{},
                                           drivers::linux_v4l2_system(), log_);
-  if (board_.imu.driver != "none") imu_ = std::make_unique<LiveImu>(board_, imu_sink);
+  if (board_.imu.driver != "none") imu_ = std::make_unique<LiveImu>(board_, imu_sink, log_);
   capture_ = std::make_unique<RtThread>(thread_spec("capture", realtime, &board_), [this, &stop] {
     const SetOnExit done(capture_done_);
     tl_allocation_counter = &capture_allocs_;  // the devices are open: none from here on

@@ -13,28 +13,60 @@
 #pragma once
 
 #include <atomic>
+#include <cmath>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "wallar/core/heartbeat.hpp"
 #include "wallar/drivers/imu/imu_driver.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/log_ring.hpp"
 
 namespace wallar::firmware {
+
+/// A stream's rate measured once at start: over `window_ns` after its first sample, or 0 when
+/// no sample came within `window_ns` of the first update. Allocation-free (the imu thread).
+class StartupRate {
+ public:
+  explicit StartupRate(DurationNs window_ns) : window_ns_(window_ns) {}
+  /// The stream's sample count at now_ns; the rate in Hz once, when it is known.
+  std::optional<double> update(TimeNs now_ns, std::uint64_t samples);
+  [[nodiscard]] bool done() const { return done_; }
+
+ private:
+  DurationNs window_ns_;
+  TimeNs t_start_ns_ = -1;
+  TimeNs t_first_ns_ = -1;
+  std::uint64_t samples_at_first_ = 0;
+  bool done_ = false;
+};
+
+/// Within 10 % of the nominal rate (a measured 0: nothing came).
+[[nodiscard]] inline bool rate_ok(double measured_hz, double nominal_hz) {
+  return measured_hz > 0.0 && std::abs(measured_hz / nominal_hz - 1.0) <= 0.1;
+}
 
 class LiveImu {
  public:
   /// Opens the board's IMU. Throws InputError when the board names no IMU, and
   /// std::runtime_error (one line naming the device and the system's reason) when a device
   /// cannot be opened.
-  LiveImu(const BoardConfig& board, drivers::ImuSampleSink& sink);
+  /// `ring` (may be null): the start-up rate check is posted there (the imu thread runs
+  /// SCHED_FIFO and formats nothing); without one it is a line on stderr.
+  LiveImu(const BoardConfig& board, drivers::ImuSampleSink& sink, LogRing* ring = nullptr);
   ~LiveImu();
   LiveImu(const LiveImu&) = delete;
   LiveImu& operator=(const LiveImu&) = delete;
 
   /// Waits on the hardware (data-ready edge, serial bytes) or until the driver's next wake
-  /// time, steps the driver, and repeats until `until_ns` (CLOCK_MONOTONIC) or `stop`.
+  /// time, steps the driver, and repeats until `until_ns` (CLOCK_MONOTONIC) or `stop`. Over
+  /// the kRateWindowNs after its first sample it measures the IMU's rate and says it, with a
+  /// warning when it is more than 10 % off the nominal rate (or when no sample came at all).
   void run(TimeNs until_ns, const std::atomic<bool>& stop);
+  static constexpr DurationNs kRateWindowNs = 3 * kNsPerS;
+  /// The rate the driver runs the chip at (an ICM-20948 gives 1125 / (1 + divider) Hz).
+  [[nodiscard]] double nominal_rate_hz() const { return nominal_rate_hz_; }
 
   [[nodiscard]] const drivers::ImuDriver& driver() const;
   /// "icm20948 on /dev/i2c-1 @0x68, data-ready gpiochip4:24" and the like.
@@ -44,8 +76,12 @@ class LiveImu {
   [[nodiscard]] const Heartbeat& heartbeat() const { return heartbeat_; }
 
  private:
+  void report_rate(double measured_hz) const;
+
   struct Parts;
   std::unique_ptr<Parts> parts_;
+  LogRing* ring_ = nullptr;
+  double nominal_rate_hz_ = 0.0;
   std::string description_;
   Heartbeat heartbeat_{Heartbeat::Kind::kLoop};
 };

@@ -43,14 +43,20 @@ class LiveStereo {
   LiveStereo(const LiveStereo&) = delete;
   LiveStereo& operator=(const LiveStereo&) = delete;
 
-  /// Captures until `until_ns` (CLOCK_MONOTONIC) or `stop`, then stops the cameras.
+  /// Captures until `until_ns` (CLOCK_MONOTONIC) or `stop`, then stops the cameras. After the
+  /// first kSyncWindowNs it says how well the pair is synchronised (sync::assess_sync): the
+  /// paired share and the skew, a warning under 90 % paired or above half the tolerance, and
+  /// for free-running cameras that the tracker triangulates images taken that far apart.
   void run(TimeNs until_ns, const std::atomic<bool>& stop);
+  static constexpr DurationNs kSyncWindowNs = 3 * kNsPerS;
 
   [[nodiscard]] const drivers::StereoCapture& capture() const;
   /// "left /dev/video0 640x480 YUYV 30.0 Hz (uvcvideo); right ..."
   [[nodiscard]] std::string description() const;
 
  private:
+  void report_sync();
+
   struct Parts;
   std::unique_ptr<Parts> parts_;
 };

@@ -29,6 +29,22 @@ struct PairingStats {
   }
 };
 
+/// How well a stereo pair is synchronised, from its pairing statistics over a window (the
+/// first seconds of a live run): what a rig of two free-running cameras (no trigger) is told at
+/// start, since it triangulates images taken up to max skew apart.
+struct SyncAssessment {
+  std::uint64_t frames = 0;     //!< frames both cameras delivered in the window
+  double paired_percent = 0.0;  //!< of those, in a pair
+  double mean_skew_ms = 0.0;    //!< |t_right - t_left| over the pairs
+  double max_skew_ms = 0.0;
+  double tolerance_ms = 0.0;
+  bool low_pairing = false;  //!< under 90 % paired
+  bool high_skew = false;    //!< max skew above half the tolerance
+  [[nodiscard]] bool warn() const { return low_pairing || high_skew; }
+};
+/// `stats` counted since the cameras started; `tolerance_ns` the pairer's.
+SyncAssessment assess_sync(const PairingStats& stats, DurationNs tolerance_ns);
+
 class StereoPairer {
  public:
   /// tolerance_ns: largest |t_left - t_right| accepted; half the frame period is a good choice.
