@@ -1,28 +1,59 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file cmd_calibrate.cpp
-/// @brief `wallar calibrate imu-cam RECORDING`: the IMU-to-left-camera rotation from the gyro
-/// against the images, compared with the recording's calibration.
+/// @brief `wallar calibrate imu-cam RECORDING`: the IMU-to-left-camera rotation and the
+/// camera-IMU time offset from the gyro against the images, compared with the recording's
+/// calibration, and written as the rig file a board points at (--out).
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "wallar/drivers/recording/calibration_files.hpp"
+#include "wallar/eval/output.hpp"
 #include "wallar/firmware/imu_cam_calibration.hpp"
+#include "wallar/firmware/offline.hpp"
 
 namespace wallar::cli {
 namespace {
 
 struct ImuCamArgs {
   std::string recording;
+  std::string out;        // the rig file to write
+  bool pairwise = false;  // rotations from image pairs instead of the tracker
   firmware::ImuCamCalibrationParams params;
   bool json = false;
 };
+
+// The recording's rig with the IMU placed as calibrated: its rotation into cam0 the solved one,
+// its position kept from the recording (rotations do not show where the IMU sits; a few
+// centimetres matter little to the attitude filter and the gyro prior), its clock offset.
+RigCalibration calibrated_rig(const recording::EurocRecording& rec,
+                              const firmware::ImuCamCalibration& c) {
+  RigCalibration rig = rec.rig();
+  SE3d T_cam0_imu = rig.T_cam0_imu();
+  T_cam0_imu.linear() = c.solved.R_cam_imu;
+  rig.imu.T_body_imu = rig.cams[0].T_body_cam * T_cam0_imu;
+  rig.imu.timeshift_cam_imu_ns = c.timeshift_cam_imu_ns;
+  rig.imu_extrinsic_known = true;
+  return rig;
+}
 
 int run_imu_cam(const ImuCamArgs& a) {
   recording::ReadOptions options;
   options.check_image_files = true;
   const recording::EurocRecording rec = recording::read_euroc(a.recording, options);
-  const firmware::ImuCamCalibration c = firmware::calibrate_imu_cam(rec, a.params);
+  firmware::ImuCamCalibration c;
+  if (a.pairwise) {
+    c = firmware::calibrate_imu_cam(rec, a.params);
+  } else {
+    // cam0's rotations from the stereo tracker, run over the recording vision-only (the gyro
+    // prior would take the very transform being calibrated), frame by frame.
+    firmware::ApplianceOptions run = firmware::offline_options(firmware::ApplianceMode::kLockStep);
+    run.use_gyro = false;
+    const firmware::ApplianceReport report =
+        firmware::run_over_recording(rec, firmware::BoardConfig{}, run, stop_requested());
+    c = firmware::calibrate_imu_cam(rec, report.trajectory, a.params);
+  }
   const Eigen::Matrix3d& R = c.solved.R_cam_imu;
   const Eigen::Quaterniond q(R);
   nlohmann::json j = {
@@ -38,7 +69,17 @@ int run_imu_cam(const ImuCamArgs& a) {
       {"residual_rms_deg", c.solved.residual_rms_rad * 180.0 / M_PI},
       {"min_axis_spread", c.solved.min_axis_spread},
       {"gyro_bias_from_still_window", c.bias_from_still_window},
-      {"vs_calibration_deg", c.vs_calibration_deg}};
+      {"vs_calibration_deg", c.vs_calibration_deg},
+      {"camera_rotations", c.from_track ? "tracked" : "image pairs"},
+      {"time_offset_estimated", c.time_offset_estimated},
+      {"timeshift_cam_imu_ms", static_cast<double>(c.timeshift_cam_imu_ns) * 1e-6}};
+  if (!a.out.empty()) {
+    // One rig file the board points at: both cameras, T_cam_imu and the time offset (Kalibr's
+    // camchain-imucam layout, which `calibration:` in a board file reads).
+    eval::write_file_atomically(a.out,
+                                recording::format_kalibr_camchain(calibrated_rig(rec, c), true));
+    j["out"] = a.out;
+  }
   if (a.json) {
     std::cout << j.dump(2) << "\n";
     return kExitOk;
@@ -50,6 +91,11 @@ int run_imu_cam(const ImuCamArgs& a) {
       c.solved.min_axis_spread);
   for (int i = 0; i < 3; ++i) std::printf("  [%+.6f %+.6f %+.6f]\n", R(i, 0), R(i, 1), R(i, 2));
   std::printf("%.3f deg from the recording's cam0 calibration (T_BS)\n", c.vs_calibration_deg);
+  if (c.time_offset_estimated) {
+    std::printf("camera-IMU time offset: t_imu = t_cam %+.2f ms\n",
+                static_cast<double>(c.timeshift_cam_imu_ns) * 1e-6);
+  }
+  if (!a.out.empty()) std::printf("rig written to %s\n", a.out.c_str());
   return kExitOk;
 }
 
@@ -75,6 +121,17 @@ void add_calibrate_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--min-pairs", a->params.min_pairs, "Fewest pairs to solve")
       ->check(CLI::Range(2, 100000))
       ->capture_default_str();
+  cmd->add_option("--max-offset-ms", a->params.max_time_offset_ms,
+                  "Search the camera-IMU time offset within +-this [ms] (0: the clocks are "
+                  "synchronised)")
+      ->check(CLI::Range(0.0, 200.0))
+      ->capture_default_str();
+  cmd->add_flag("--pairwise", a->pairwise,
+                "The camera's rotations from each image pair alone (rotation-only fit) instead "
+                "of from the stereo tracker over the whole recording");
+  cmd->add_option("--out", a->out,
+                  "Write the rig file (Kalibr camchain with T_cam_imu and timeshift_cam_imu) "
+                  "for the board's calibration: key");
   cmd->add_flag("--json", a->json, "Print the result as JSON on stdout");
   cmd->callback([a, &run] { run = [a] { return run_imu_cam(*a); }; });
   add_calibrate_stereo_commands(*calibrate, run);

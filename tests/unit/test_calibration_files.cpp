@@ -116,6 +116,25 @@ cam1:
   EXPECT_NEAR(k.cams[0].T_body_cam.translation().x(), -0.0216401454975, 1e-5);
 }
 
+TEST(CalibrationFiles, TheCameraImuTimeOffsetTravelsInTheCamchain) {
+  // `wallar calibrate imu-cam --out` writes Kalibr's timeshift_cam_imu (seconds) beside
+  // T_cam_imu; the board's calibration reads it back (the tracker's gyro prior applies it).
+  RigCalibration rig = sample_rig();
+  rig.imu.timeshift_cam_imu_ns = -7'250'000;
+  const std::string text = recording::format_kalibr_camchain(rig, true);
+  EXPECT_NE(text.find("timeshift_cam_imu: -0.00725"), std::string::npos) << text;
+  EXPECT_EQ(parse_rig_calibration(text, "c.yaml").imu.timeshift_cam_imu_ns, -7'250'000);
+  EXPECT_EQ(parse_rig_calibration(recording::format_kalibr_camchain(rig), "c.yaml")
+                .imu.timeshift_cam_imu_ns,
+            0);  // a stereo-only file has none
+  std::string bad = text;
+  const std::size_t at = bad.find("timeshift_cam_imu: ") + 19;
+  bad.replace(at, bad.find('\n', at) - at, "2.5");
+  const std::string error = input_error_of([&] { (void)parse_rig_calibration(bad, "c.yaml"); });
+  EXPECT_NE(error.find("timeshift_cam_imu' must be a time offset in seconds"), std::string::npos)
+      << error;
+}
+
 TEST(CalibrationFiles, AStereoOnlyFileSaysThatItDoesNotKnowWhereTheImuIs) {
   // A stereo calibration (cam0 as the body) cannot tell an IMU's frame: the flag says so, and a
   // live board with an IMU refuses it (cli.record_live). Kalibr's T_cam_imu, a EuRoC folder's

@@ -11,6 +11,7 @@
 #include "camera_yaml.hpp"
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/config/yaml.hpp"
+#include "wallar/drivers/recording/csv.hpp"
 #include "wallar/drivers/recording/euroc.hpp"
 
 namespace wallar::recording {
@@ -88,6 +89,12 @@ RigCalibration parse_kalibr(const config::YamlNode& root) {
   if (const config::YamlNode* t = c0.find("T_cam_imu"))
     T_body_cam0 = detail::read_rigid(*t).inverse();
   rig.cams[0].T_body_cam = T_body_cam0;
+  // Kalibr's camera-IMU time offset (seconds): t_imu = t_cam + timeshift_cam_imu.
+  if (const config::YamlNode* shift = c0.find("timeshift_cam_imu")) {
+    const double s = shift->as_double();
+    if (std::abs(s) > 1.0) shift->fail("must be a time offset in seconds within +-1 s");
+    rig.imu.timeshift_cam_imu_ns = static_cast<std::int64_t>(std::llround(s * 1e9));
+  }
   if (const config::YamlNode* t = c1.find("T_cn_cnm1")) {
     rig.cams[1].T_body_cam = T_body_cam0 * detail::read_rigid(*t).inverse();
   } else if (const config::YamlNode* ti = c1.find("T_cam_imu")) {
@@ -182,9 +189,13 @@ std::string format_kalibr_camchain(const RigCalibration& rig, bool with_imu) {
       d.resize(4);
     }
     s << "cam" << i << ":\n";
-    if (with_imu)
+    if (with_imu) {
       kalibr_T(s, "T_cam_imu",
                rig.cams[static_cast<std::size_t>(i)].T_body_cam.inverse() * rig.imu.T_body_imu);
+      // Kalibr writes the offset per camera; the cameras share one clock here.
+      s << "  timeshift_cam_imu: " << format_euroc_double(ns_to_s(rig.imu.timeshift_cam_imu_ns))
+        << "\n";
+    }
     if (i == 1) kalibr_T(s, "T_cn_cnm1", rig.T_cam0_cam1().inverse());
     s << "  camera_model: pinhole\n  intrinsics: " << list({c.fx, c.fy, c.cx, c.cy})
       << "\n  distortion_model: "

@@ -19,11 +19,22 @@ std::optional<Eigen::Vector3d> integrate_gyro_rotvec(std::span<const ImuSample> 
     return std::nullopt;
   }
   Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+  // The rate between two samples is their linear interpolation: the rotation over [a, b] is
+  // the mean of the rates at a and b times b - a. (Holding each sample's rate until the next
+  // one would shift every integral by half a sample period, a time offset of its own.)
+  const auto rate_at = [&](std::size_t i, TimeNs t) {
+    const double span = static_cast<double>(samples[i + 1].t_ns - samples[i].t_ns);
+    const double w = span > 0.0 ? static_cast<double>(t - samples[i].t_ns) / span : 0.0;
+    return Eigen::Vector3d((1.0 - w) * samples[i].gyro_rad_s + w * samples[i + 1].gyro_rad_s);
+  };
   for (std::size_t i = 0; i + 1 < samples.size(); ++i) {
+    if (samples[i + 1].t_ns <= t_begin_ns) continue;
+    if (samples[i].t_ns >= t_end_ns) break;
     const TimeNs a = std::max(samples[i].t_ns, t_begin_ns);
     const TimeNs b = std::min(samples[i + 1].t_ns, t_end_ns);
     if (b <= a) continue;
-    const Eigen::Vector3d rotvec = (samples[i].gyro_rad_s - gyro_bias_rad_s) * ns_to_s(b - a);
+    const Eigen::Vector3d rotvec =
+        (0.5 * (rate_at(i, a) + rate_at(i, b)) - gyro_bias_rad_s) * ns_to_s(b - a);
     const double angle = rotvec.norm();
     if (angle > 0.0) q = q * Eigen::Quaterniond(Eigen::AngleAxisd(angle, rotvec / angle));
   }

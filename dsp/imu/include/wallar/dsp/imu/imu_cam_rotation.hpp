@@ -21,9 +21,10 @@
 namespace wallar::dsp {
 
 /// The rotation the gyro measures from t_begin_ns to t_end_ns, as a rotation vector in the IMU
-/// frame at t_begin (R_imu0_imu1 = Exp(result)). Samples are integrated piecewise (each rate
-/// held over the interval to the next sample, clipped to the window) with `gyro_bias_rad_s`
-/// removed. Nothing when the samples do not cover the window.
+/// frame at t_begin (R_imu0_imu1 = Exp(result)). Samples are integrated piecewise (the rate
+/// interpolated linearly between samples, clipped to the window: a window shifted by a
+/// fraction of a sample period changes the result continuously, which a time-offset search
+/// needs) with `gyro_bias_rad_s` removed. Nothing when the samples do not cover the window.
 std::optional<Eigen::Vector3d> integrate_gyro_rotvec(std::span<const ImuSample> samples,
                                                      TimeNs t_begin_ns, TimeNs t_end_ns,
                                                      const Eigen::Vector3d& gyro_bias_rad_s);
