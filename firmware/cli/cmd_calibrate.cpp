@@ -11,6 +11,7 @@
 #include "wallar/drivers/recording/calibration_files.hpp"
 #include "wallar/eval/output.hpp"
 #include "wallar/firmware/imu_cam_calibration.hpp"
+#include "wallar/firmware/imu_noise_calibration.hpp"
 #include "wallar/firmware/offline.hpp"
 
 namespace wallar::cli {
@@ -99,6 +100,80 @@ int run_imu_cam(const ImuCamArgs& a) {
   return kExitOk;
 }
 
+struct ImuNoiseArgs {
+  std::string recording;
+  std::string out;  // an imu0/sensor.yaml to write
+  double min_duration_s = 60.0;
+  bool json = false;
+};
+
+int run_imu_noise(const ImuNoiseArgs& a) {
+  const recording::EurocRecording rec = recording::read_euroc_imu(a.recording);
+  const firmware::ImuNoiseCalibration c = firmware::calibrate_imu_noise(rec, a.min_duration_s);
+  const auto opt = [](const std::optional<double>& v) {
+    return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+  };
+  const auto axes = [&](const std::array<dsp::AllanNoise, 3>& n) {
+    nlohmann::json j = nlohmann::json::array();
+    for (const dsp::AllanNoise& x : n) {
+      j.push_back({{"noise_density", opt(x.white_density)},
+                   {"random_walk", opt(x.random_walk)},
+                   {"bias_instability", x.bias_instability},
+                   {"tau_min_s", x.tau_min_s}});
+    }
+    return j;
+  };
+  const ImuCalibration& file = rec.imu_calib;
+  nlohmann::json j = {{"recording", a.recording},
+                      {"duration_s", c.duration_s},
+                      {"rate_hz", c.rate_hz},
+                      {"gyroscope_noise_density", opt(c.gyro_noise_density)},
+                      {"gyroscope_random_walk", opt(c.gyro_random_walk)},
+                      {"accelerometer_noise_density", opt(c.accel_noise_density)},
+                      {"accelerometer_random_walk", opt(c.accel_random_walk)},
+                      {"gyro_axes", axes(c.gyro)},
+                      {"accel_axes", axes(c.accel)},
+                      {"sensor_yaml",
+                       {{"gyroscope_noise_density", file.gyro_noise_density},
+                        {"gyroscope_random_walk", file.gyro_random_walk},
+                        {"accelerometer_noise_density", file.accel_noise_density},
+                        {"accelerometer_random_walk", file.accel_random_walk}}}};
+  if (!a.out.empty()) {
+    // The recording's IMU description with what was measured in place of what it said; a
+    // random walk the recording was too short to show keeps the file's value.
+    ImuCalibration imu = file;
+    imu.rate_hz = c.rate_hz;
+    if (c.gyro_noise_density) imu.gyro_noise_density = *c.gyro_noise_density;
+    if (c.gyro_random_walk) imu.gyro_random_walk = *c.gyro_random_walk;
+    if (c.accel_noise_density) imu.accel_noise_density = *c.accel_noise_density;
+    if (c.accel_random_walk) imu.accel_random_walk = *c.accel_random_walk;
+    recording::write_imu_sensor_yaml(a.out, imu);
+    j["out"] = a.out;
+  }
+  if (a.json) {
+    std::cout << j.dump(2) << "\n";
+    return kExitOk;
+  }
+  const auto show = [](const char* name, const std::optional<double>& v, double file_value,
+                       const char* unit) {
+    if (v) {
+      std::printf("  %-28s %.3e %s (the recording's sensor.yaml: %.3e)\n", name, *v, unit,
+                  file_value);
+    } else {
+      std::printf("  %-28s not identifiable: record longer (the +1/2 slope never shows)\n", name);
+    }
+  };
+  std::printf("wallar calibrate imu-noise: %.1f s at %.1f Hz, Allan deviation per axis\n",
+              c.duration_s, c.rate_hz);
+  show("gyroscope_noise_density", c.gyro_noise_density, file.gyro_noise_density, "rad/s/sqrt(Hz)");
+  show("gyroscope_random_walk", c.gyro_random_walk, file.gyro_random_walk, "rad/s^2/sqrt(Hz)");
+  show("accelerometer_noise_density", c.accel_noise_density, file.accel_noise_density,
+       "m/s^2/sqrt(Hz)");
+  show("accelerometer_random_walk", c.accel_random_walk, file.accel_random_walk, "m/s^3/sqrt(Hz)");
+  if (!a.out.empty()) std::printf("written to %s\n", a.out.c_str());
+  return kExitOk;
+}
+
 }  // namespace
 
 void add_calibrate_command(CLI::App& app, std::function<int()>& run) {
@@ -134,6 +209,20 @@ void add_calibrate_command(CLI::App& app, std::function<int()>& run) {
                   "for the board's calibration: key");
   cmd->add_flag("--json", a->json, "Print the result as JSON on stdout");
   cmd->callback([a, &run] { run = [a] { return run_imu_cam(*a); }; });
+  auto n = std::make_shared<ImuNoiseArgs>();
+  CLI::App* noise = calibrate->add_subcommand(
+      "imu-noise",
+      "The IMU's noise densities and random walks from a recording of it at rest (Allan "
+      "deviation)");
+  noise->add_option("recording", n->recording, "EuRoC-layout recording with imu0, at rest")
+      ->required();
+  noise->add_option("--min-duration-s", n->min_duration_s, "Shortest recording accepted [s]")
+      ->check(CLI::Range(10.0, 1e6))
+      ->capture_default_str();
+  noise->add_option("--out", n->out,
+                    "Write an imu0/sensor.yaml with the measured densities (Kalibr's names)");
+  noise->add_flag("--json", n->json, "Print the result as JSON on stdout");
+  noise->callback([n, &run] { run = [n] { return run_imu_noise(*n); }; });
   add_calibrate_stereo_commands(*calibrate, run);
 }
 

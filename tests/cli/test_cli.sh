@@ -623,6 +623,45 @@ rectify_check)
   one_err_line
   expect_err "exceeds --max-mean-px 0.010"
   ;;
+calibrate_imu_noise)
+  # Two minutes of a still IMU at 200 Hz generated with known densities (the simulator's
+  # discrete forms): the Allan deviation reads them back; the bundled cut is too short.
+  mkdir -p "$tmp/still/mav0/imu0"
+  python3 - "$tmp/still/mav0/imu0/data.csv" <<'PY'
+import math, random, sys
+random.seed(5)
+rate, n = 200.0, 24000
+ng, kg, na, ka = 2e-4, 2e-4, 2e-3, 3e-3
+bg, ba = [0.0] * 3, [0.0] * 3
+with open(sys.argv[1], 'w') as f:
+    f.write('#timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z\n')
+    for k in range(n):
+        g = [bg[i] + ng * math.sqrt(rate) * random.gauss(0, 1) for i in range(3)]
+        a = [ba[i] + na * math.sqrt(rate) * random.gauss(0, 1) + (9.81 if i == 2 else 0.0) for i in range(3)]
+        for i in range(3):
+            bg[i] += kg / math.sqrt(rate) * random.gauss(0, 1)
+            ba[i] += ka / math.sqrt(rate) * random.gauss(0, 1)
+        f.write('%d,%s\n' % (10**9 + k * 5000000, ','.join('%.9g' % v for v in g + a)))
+PY
+  run calibrate imu-noise "$tmp/still" --out "$tmp/imu.yaml" --json; expect_rc 0
+  [ "$(json "abs(d['gyroscope_noise_density'] / 2e-4 - 1) < 0.1")" = True ] || fail "gyro density: $(cat "$tmp/out")"
+  [ "$(json "abs(d['gyroscope_random_walk'] / 2e-4 - 1) < 0.35")" = True ] || fail "gyro walk: $(cat "$tmp/out")"
+  [ "$(json "abs(d['accelerometer_noise_density'] / 2e-3 - 1) < 0.1")" = True ] || fail "accel density"
+  grep -q "^gyroscope_noise_density: 0.0002" "$tmp/imu.yaml" || fail "sensor.yaml: $(cat "$tmp/imu.yaml")"
+  run calibrate imu-noise "$rec"; expect_rc 2; one_err_line
+  expect_err "s of IMU samples: the noise needs at least 60 s at rest"
+  # A turn in the middle: refused, not read as noise.
+  python3 - "$tmp/still/mav0/imu0/data.csv" <<'PY'
+import sys
+rows = open(sys.argv[1]).read().splitlines()
+for i in range(12000, 12400):
+    v = rows[i].split(',')
+    v[4], v[6] = '4.0', '6.0'
+    rows[i] = ','.join(v)
+open(sys.argv[1], 'w').write('\n'.join(rows) + '\n')
+PY
+  run calibrate imu-noise "$tmp/still"; expect_rc 2; one_err_line; expect_err "the IMU moves"
+  ;;
 calibrate_imu_cam)
   # The bundled cut stands still: the rotation cannot be determined, and the command says why.
   run calibrate imu-cam "$rec"; expect_rc 2; one_err_line
