@@ -12,6 +12,11 @@ dsp::AttitudeFilterConfig attitude_config_for(const ImuCalibration& imu) {
   if (imu.rate_hz > 0.0) {
     config.init_window_samples = static_cast<std::size_t>(std::max(20.0, std::round(imu.rate_hz)));
   }
+  // The gyro's own noise figures where the calibration gives them (a datasheet's, or measured
+  // by `wallar calibrate imu-noise`), not values tuned on one flight. The accelerometer's
+  // noise in the filter stays a model of vibration and motion, not of the sensor.
+  if (imu.gyro_noise_density > 0.0) config.gyro_noise_rad_s_sqrt_hz = imu.gyro_noise_density;
+  if (imu.gyro_random_walk > 0.0) config.gyro_bias_walk_rad_s2_sqrt_hz = imu.gyro_random_walk;
   return config;
 }
 

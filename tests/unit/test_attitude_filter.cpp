@@ -236,6 +236,24 @@ TEST(AttitudeFilter, GravityInTheLeftCameraFrameOfTheEurocRig) {
   EXPECT_GT(g_cam.y(), 0.5);
 }
 
+TEST(AttitudeFilter, TheGyroNoiseComesFromTheImusCalibration) {
+  // The rig's (or sensor.yaml's) gyro noise density and bias walk, as a datasheet or `wallar
+  // calibrate imu-noise` gives them, not values tuned on one flight; without them the defaults.
+  ImuCalibration imu;
+  imu.rate_hz = 200.0;
+  imu.gyro_noise_density = 1.7e-4;
+  imu.gyro_random_walk = 1.9e-5;
+  const dsp::AttitudeFilterConfig c = firmware::attitude_config_for(imu);
+  EXPECT_DOUBLE_EQ(c.gyro_noise_rad_s_sqrt_hz, 1.7e-4);
+  EXPECT_DOUBLE_EQ(c.gyro_bias_walk_rad_s2_sqrt_hz, 1.9e-5);
+  EXPECT_EQ(c.init_window_samples, 200u);
+  const dsp::AttitudeFilterConfig d = firmware::attitude_config_for(ImuCalibration{});
+  EXPECT_DOUBLE_EQ(d.gyro_noise_rad_s_sqrt_hz,
+                   dsp::AttitudeFilterConfig{}.gyro_noise_rad_s_sqrt_hz);
+  EXPECT_DOUBLE_EQ(d.gyro_bias_walk_rad_s2_sqrt_hz,
+                   dsp::AttitudeFilterConfig{}.gyro_bias_walk_rad_s2_sqrt_hz);
+}
+
 TEST(AttitudeFilter, GroundTruthIsInterpolatedBetweenRows) {
   const auto rec = recording::read_euroc(bundled_recording());
   const auto& a = rec.ground_truth[3];

@@ -40,7 +40,9 @@ struct AttitudeRun {
 AttitudeRow attitude_row(const dsp::AttitudeFilter& filter, TimeNs t_ns, bool valid);
 
 /// The filter's configuration for an IMU: the still window is one second at its rate (at least
-/// 20 samples; the filter's default of 200 when the rate is unknown).
+/// 20 samples; the filter's default of 200 when the rate is unknown); the gyro's noise density
+/// and bias random walk from the calibration when it gives them (the filter's defaults when
+/// zero).
 dsp::AttitudeFilterConfig attitude_config_for(const ImuCalibration& imu);
 /// The same for a recording's IMU (its sensor.yaml).
 inline dsp::AttitudeFilterConfig attitude_config_for(const recording::EurocRecording& rec) {
