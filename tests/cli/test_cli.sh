@@ -682,7 +682,9 @@ calibrate_imu_cam)
 import sys
 t = open(sys.argv[1]).read()
 shift = [float(l.split(':')[1]) for l in t.splitlines() if l.strip().startswith('timeshift_cam_imu')]
-sys.exit(0 if 'T_cam_imu' in t and len(shift) == 2 and abs(shift[0] - 0.005) < 0.001 else 1)
+noise = [l for l in t.splitlines() if l.strip().startswith('gyroscope_noise_density:')
+         and abs(float(l.split(':')[1].split('#')[0]) - 2.6e-4) < 1e-9]  # the recording's
+sys.exit(0 if 'T_cam_imu' in t and len(shift) == 2 and abs(shift[0] - 0.005) < 0.001 and noise else 1)
 PY
   # The board reads it: a replay board over the clip with this calibration tracks.
   run track "$tmp/la" --lockstep --json; expect_rc 0

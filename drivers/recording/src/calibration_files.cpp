@@ -103,6 +103,21 @@ RigCalibration parse_kalibr(const config::YamlNode& root) {
   } else {
     c1.fail("has neither T_cn_cnm1 nor T_cam_imu: the stereo extrinsics are missing");
   }
+  // The IMU's noise in Kalibr's imu.yaml names, in the same file (the rig file wallar
+  // calibrate writes): what the attitude filter takes.
+  if (const config::YamlNode* imu = root.find("imu0")) {
+    const auto density = [&](const char* key, double& out) {
+      if (const config::YamlNode* n = imu->find(key)) {
+        out = n->as_double();
+        if (!(out >= 0.0)) n->fail("must be a noise figure >= 0");
+      }
+    };
+    density("gyroscope_noise_density", rig.imu.gyro_noise_density);
+    density("gyroscope_random_walk", rig.imu.gyro_random_walk);
+    density("accelerometer_noise_density", rig.imu.accel_noise_density);
+    density("accelerometer_random_walk", rig.imu.accel_random_walk);
+    density("update_rate", rig.imu.rate_hz);
+  }
   return rig;
 }
 
@@ -202,6 +217,19 @@ std::string format_kalibr_camchain(const RigCalibration& rig, bool with_imu) {
       << (c.distortion_model == "equidistant" ? "equidistant" : "radtan")
       << "\n  distortion_coeffs: " << list(d) << "\n  resolution: [" << c.width_px << ", "
       << c.height_px << "]\n  rostopic: /cam" << i << "/image_raw\n";
+  }
+  const ImuCalibration& imu = rig.imu;
+  if (with_imu && (imu.gyro_noise_density > 0.0 || imu.accel_noise_density > 0.0)) {
+    s << "imu0:  # Kalibr's imu.yaml names\n"
+      << "  gyroscope_noise_density: " << format_euroc_double(imu.gyro_noise_density)
+      << "  # [rad/s/sqrt(Hz)]\n"
+      << "  gyroscope_random_walk: " << format_euroc_double(imu.gyro_random_walk)
+      << "  # [rad/s^2/sqrt(Hz)]\n"
+      << "  accelerometer_noise_density: " << format_euroc_double(imu.accel_noise_density)
+      << "  # [m/s^2/sqrt(Hz)]\n"
+      << "  accelerometer_random_walk: " << format_euroc_double(imu.accel_random_walk)
+      << "  # [m/s^3/sqrt(Hz)]\n"
+      << "  update_rate: " << format_euroc_double(imu.rate_hz) << "  # [Hz]\n";
   }
   return s.str();
 }

@@ -32,6 +32,9 @@ using ExtraMatrices = std::vector<std::pair<std::string, Eigen::MatrixXd>>;
 
 std::string format_opencv_stereo_yaml(const RigCalibration& rig, const ExtraMatrices& extra = {});
 /// Throws InputError when a camera's distortion cannot be written as Kalibr's radtan (k3 != 0).
+/// with_imu: each camera's T_cam_imu and timeshift_cam_imu, and, when the IMU's noise is known,
+/// an `imu0:` section in Kalibr's imu.yaml names (the rig file `wallar calibrate` writes; the
+/// reader takes it back).
 std::string format_kalibr_camchain(const RigCalibration& rig, bool with_imu = false);
 
 /// Parses an OpenCV stereo YAML or a Kalibr camchain (told apart by their keys); errors name
