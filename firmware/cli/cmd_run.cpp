@@ -12,6 +12,7 @@
 
 #include "commands.hpp"
 #include "wallar/core/error.hpp"
+#include "wallar/drivers/camera/v4l2_system.hpp"
 #include "wallar/drivers/cloud/cloud_io.hpp"
 #include "wallar/drivers/devices/device_names.hpp"
 #include "wallar/drivers/recording/tum_trajectory.hpp"
@@ -140,7 +141,8 @@ nlohmann::json to_json(const firmware::ApplianceReport& r, const firmware::RunOu
 // problem to stderr as one line naming the key; exit 2 when the board contradicts itself or
 // its calibration, 1 when a device is missing.
 int run_check(const RunArgs& args, const firmware::BoardConfig& board) {
-  const firmware::BoardCheck check = firmware::check_board(board, drivers::DeviceTree());
+  const firmware::BoardCheck check =
+      firmware::check_board(board, drivers::DeviceTree(), &drivers::linux_v4l2_system());
   std::cout << "board " << board.name << " (" << args.board << "):\n";
   std::size_t width = 0;
   for (const auto& f : check.found) width = std::max(width, f.key.size());

@@ -158,6 +158,32 @@ int FakeV4l2Device::ioctl(int fd, unsigned long request, void* arg) {  // NOLINT
       cap->device_caps = spec_.caps;
       return 0;
     }
+    // What it offers: each format at the spec's one size, at the spec's rate and half of it.
+    case VIDIOC_ENUM_FMT: {
+      auto* desc = static_cast<v4l2_fmtdesc*>(arg);
+      if (desc->type != V4L2_BUF_TYPE_VIDEO_CAPTURE || desc->index >= spec_.fourccs.size())
+        return fail(EINVAL);
+      desc->pixelformat = spec_.fourccs[desc->index];
+      return 0;
+    }
+    case VIDIOC_ENUM_FRAMESIZES: {
+      auto* size = static_cast<v4l2_frmsizeenum*>(arg);
+      if (size->index != 0) return fail(EINVAL);
+      size->type = V4L2_FRMSIZE_TYPE_DISCRETE;
+      size->discrete.width = static_cast<std::uint32_t>(spec_.width_px);
+      size->discrete.height = static_cast<std::uint32_t>(spec_.height_px);
+      return 0;
+    }
+    case VIDIOC_ENUM_FRAMEINTERVALS: {
+      auto* iv = static_cast<v4l2_frmivalenum*>(arg);
+      if (iv->index > 1 || iv->width != static_cast<std::uint32_t>(spec_.width_px) ||
+          iv->height != static_cast<std::uint32_t>(spec_.height_px))
+        return fail(EINVAL);
+      iv->type = V4L2_FRMIVAL_TYPE_DISCRETE;
+      iv->discrete.numerator = 1000 * (iv->index + 1);
+      iv->discrete.denominator = static_cast<std::uint32_t>(std::lround(spec_.fps * 1000.0));
+      return 0;
+    }
     case VIDIOC_S_FMT: {
       if (streaming_ || buffer_count_ > 0) return fail(EBUSY);
       auto* fmt = static_cast<v4l2_format*>(arg);

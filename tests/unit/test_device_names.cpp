@@ -9,6 +9,7 @@
 #include <fstream>
 #include <map>
 
+#include "fake_v4l2.hpp"
 #include "test_support.hpp"
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/devices/device_names.hpp"
@@ -255,6 +256,45 @@ TEST(BoardDevices, ThePi5BoardResolvesEveryDeviceOnAPi5TreeOfEitherKernel) {
     EXPECT_EQ(resolved.camera_trigger->chip, rp1);
     EXPECT_EQ(resolved.cameras[0].device, board.cameras[0].device);  // links stay links
   }
+}
+
+// `wallar run --check` asks each camera it finds what it offers (VIDIOC_ENUM_FMT, _FRAMESIZES,
+// _FRAMEINTERVALS): the board's mode must be one of them, one line per camera that cannot.
+TEST(BoardDevices, EachCameraIsAskedWhetherItOffersTheBoardsMode) {
+  const firmware::BoardConfig board = pi5_board();  // 640x480 YUYV at 30 Hz
+  FakeTree t("pi5_modes");
+  pi5_gpio(t, true);
+  pi5_devices(t, 640);
+  FakeCameraSpec vga;
+  vga.width_px = 640;
+  vga.height_px = 480;
+  {
+    FakeV4l2 v4l2;
+    v4l2.add_device("/dev/video2", vga);  // left (by-path -> video2)
+    v4l2.add_device("/dev/video0", vga);
+    const firmware::BoardCheck check = firmware::check_board(board, t.tree(), &v4l2);
+    EXPECT_TRUE(check.ok()) << problems(check);
+    EXPECT_EQ(found(check, "cameras.left mode on /dev/video2"), "YUYV 640x480 @ 30 Hz offered");
+    EXPECT_EQ(found(check, "cameras.right mode on /dev/video0"), "YUYV 640x480 @ 30 Hz offered");
+  }
+  FakeCameraSpec hd = vga;
+  hd.width_px = 1280;
+  hd.height_px = 720;
+  hd.fourccs = {V4L2_PIX_FMT_YUYV, V4L2_PIX_FMT_MJPEG};
+  FakeCameraSpec slow = vga;
+  slow.fps = 25.0;
+  FakeV4l2 v4l2;
+  v4l2.add_device("/dev/video2", slow);
+  v4l2.add_device("/dev/video0", hd);
+  const firmware::BoardCheck check = firmware::check_board(board, t.tree(), &v4l2);
+  ASSERT_EQ(check.problems.size(), 2u) << problems(check);
+  EXPECT_EQ(check.problems[0].line,
+            "cameras.left.fps: 30 Hz is not offered by /dev/video2 at YUYV 640x480 (it offers "
+            "GREY 640x480 @ 25/12.5 Hz, YUYV 640x480 @ 25/12.5 Hz, MJPG 640x480 @ 25/12.5 Hz)");
+  EXPECT_EQ(check.problems[1].line,
+            "cameras.right.format/width/height: YUYV 640x480 is not a mode of /dev/video0 (it "
+            "offers YUYV 1280x720 @ 30/15 Hz, MJPG 1280x720 @ 30/15 Hz)");
+  EXPECT_TRUE(check.any_bad_input());  // the board asks what the device cannot: exit 2
 }
 
 TEST(BoardDevices, AWrongCameraModeIsBadInputThatNamesTheKey) {

@@ -11,6 +11,8 @@
 
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/bus/i2c_recovery.hpp"
+#include "wallar/drivers/camera/v4l2_camera.hpp"
+#include "wallar/drivers/camera/v4l2_modes.hpp"
 #include "wallar/drivers/recording/calibration_files.hpp"
 
 namespace wallar::firmware {
@@ -184,7 +186,56 @@ void check_rig(const BoardConfig& board, const RigCalibration& rig, const std::s
   }
 }
 
-BoardCheck check_board(const BoardConfig& board, const drivers::DeviceTree& tree) {
+namespace {
+
+// Each camera found asked for its modes: the board's must be one of them.
+void check_camera_modes(const BoardConfig& board, const drivers::DeviceTree& tree,
+                        drivers::V4l2System& v4l2, BoardCheck* check) {
+  for (int i = 0; i < 2; ++i) {
+    const CameraConfig& c = board.cameras[i];
+    if (c.device.empty()) continue;
+    std::string node;
+    try {
+      node = drivers::resolve_device_node(c.device, tree).node;
+    } catch (const DeviceError&) {
+      continue;  // already a problem of its own
+    }
+    const std::string key = kCameraKey[i];
+    std::vector<drivers::V4l2Mode> modes;
+    try {
+      modes = drivers::enumerate_v4l2_modes(v4l2, node);
+    } catch (const DeviceError& e) {
+      check->problems.push_back({key + ".device: " + e.what(), false});
+      continue;
+    }
+    if (modes.empty()) continue;  // a device that enumerates nothing: nothing to hold it to
+    const auto format = drivers::parse_camera_pixel_format(c.pixel_format);
+    if (!format) continue;  // the board parser names it
+    const std::uint32_t fourcc = drivers::fourcc_of(*format);
+    char mode[96];
+    std::snprintf(mode, sizeof mode, "%s %dx%d", c.pixel_format.c_str(), c.width_px, c.height_px);
+    if (!drivers::offers_mode(modes, fourcc, c.width_px, c.height_px)) {
+      check->problems.push_back({key + ".format/width/height: " + mode + " is not a mode of " +
+                                     node + " (it offers " + drivers::describe_modes(modes) + ")",
+                                 true});
+      continue;
+    }
+    if (!drivers::offers_mode(modes, fourcc, c.width_px, c.height_px, c.fps)) {
+      check->problems.push_back({key + ".fps: " + hz(c.fps) + " Hz is not offered by " + node +
+                                     " at " + mode + " (it offers " +
+                                     drivers::describe_modes(modes) + ")",
+                                 true});
+      continue;
+    }
+    check->found.push_back(
+        {key + " mode on " + node, std::string(mode) + " @ " + hz(c.fps) + " Hz offered"});
+  }
+}
+
+}  // namespace
+
+BoardCheck check_board(const BoardConfig& board, const drivers::DeviceTree& tree,
+                       drivers::V4l2System* v4l2) {
   BoardCheck check;
   if (board.source != BoardConfig::Source::kLive) {
     std::error_code ec;
@@ -209,6 +260,7 @@ BoardCheck check_board(const BoardConfig& board, const drivers::DeviceTree& tree
     }
   }
   resolve_board_devices(board, tree, &check);
+  if (v4l2 != nullptr) check_camera_modes(board, tree, *v4l2, &check);
   return check;
 }
 

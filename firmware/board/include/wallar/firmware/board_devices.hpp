@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "wallar/core/calibration.hpp"
+#include "wallar/drivers/camera/v4l2_system.hpp"
 #include "wallar/drivers/devices/device_names.hpp"
 #include "wallar/firmware/board.hpp"
 
@@ -64,7 +65,11 @@ void check_rig(const BoardConfig& board, const RigCalibration& rig, const std::s
 /// Everything `wallar run --check` checks, without opening a device: a live board's
 /// calibration read (where calibration_in() says) and checked against the board (check_rig),
 /// then every device resolved. A replay board: its recording is there.
-BoardCheck check_board(const BoardConfig& board, const drivers::DeviceTree& tree);
+/// With `v4l2` (the system's for the system's tree, a fake's in tests), each camera found is
+/// opened and asked what it offers (VIDIOC_ENUM_*): the board's format and size must be a mode
+/// of it, and its rate one of that mode's (bad input: the board asks what the device cannot).
+BoardCheck check_board(const BoardConfig& board, const drivers::DeviceTree& tree,
+                       drivers::V4l2System* v4l2 = nullptr);
 
 /// The start-up check of a command that opens some of a live board's sensors without
 /// tracking (`wallar record`: cameras and IMU; `wallar imu`: the IMU): the devices under the
