@@ -179,29 +179,19 @@ void LiveImu::report_rate(double measured_hz) const {
   const bool none = measured_hz <= 0.0;
   const bool off = !none && !rate_ok(measured_hz, nominal_rate_hz_);
   const char* state = drivers::to_string(parts_->driver->state()).data();  // a literal
-  if (ring_ != nullptr) {  // numbers only on this thread: the log thread formats them
-    if (none) {
-      ring_->post(kNone, {window_s, state});
-      return;
-    }
-    ring_->post(kLine, {window_s, measured_hz, nominal_rate_hz_});
-    if (off) ring_->post(kOff, {measured_hz, nominal_rate_hz_});
-    return;
-  }
+  // A record for the log thread on the appliance (numbers only on this SCHED_FIFO thread); a
+  // line on stderr for record and imu.
+  const auto say = [this](const char* format, std::initializer_list<LogArg> args) {
+    post_or_log(
+        ring_, [](const std::string& l) { std::fprintf(stderr, "wallar: %s\n", l.c_str()); },
+        format, args);
+  };
   if (none) {
-    std::fprintf(stderr, "wallar: ");
-    std::fprintf(stderr, kNone, window_s, state);
-    std::fprintf(stderr, "\n");
+    say(kNone, {window_s, state});
     return;
   }
-  std::fprintf(stderr, "wallar: ");
-  std::fprintf(stderr, kLine, window_s, measured_hz, nominal_rate_hz_);
-  std::fprintf(stderr, "\n");
-  if (off) {
-    std::fprintf(stderr, "wallar: ");
-    std::fprintf(stderr, kOff, measured_hz, nominal_rate_hz_);
-    std::fprintf(stderr, "\n");
-  }
+  say(kLine, {window_s, measured_hz, nominal_rate_hz_});
+  if (off) say(kOff, {measured_hz, nominal_rate_hz_});
 }
 
 }  // namespace wallar::firmware

@@ -139,7 +139,6 @@ void LiveStereo::report_sync() {
   const sync::SyncAssessment a = sync::assess_sync(capture.pairing(), capture.tolerance_ns());
   const double window_s = ns_to_s(kSyncWindowNs);
   const char* rig = parts_->trigger ? "triggered cameras" : "free-running cameras (no trigger)";
-  // Numbers only on this thread: with a ring the log thread formats them.
   static constexpr const char* kLine =
       "stereo sync over the first %g s: %.1f %% of %lld frames paired, skew mean %.1f ms, "
       "max %.1f ms (tolerance %g ms)";
@@ -152,32 +151,17 @@ void LiveStereo::report_sync() {
   static constexpr const char* kFreeRunning =
       "%s: the tracker triangulates images up to %.1f ms apart";
   const auto frames = static_cast<long long>(a.frames);
-  if (parts_->ring != nullptr) {
-    LogRing& ring = *parts_->ring;
-    ring.post(kLine,
-              {window_s, a.paired_percent, frames, a.mean_skew_ms, a.max_skew_ms, a.tolerance_ms});
-    if (a.low_pairing) ring.post(kLowPairing, {a.paired_percent});
-    if (a.high_skew) {
-      ring.post(kHighSkew, {a.max_skew_ms, a.tolerance_ms, rig});
-    } else if (!parts_->trigger) {
-      ring.post(kFreeRunning, {rig, a.max_skew_ms});
-    }
-    return;
-  }
-  char buf[320];
-  std::snprintf(buf, sizeof buf, kLine, window_s, a.paired_percent, frames, a.mean_skew_ms,
-                a.max_skew_ms, a.tolerance_ms);
-  parts_->log(std::string("wallar: ") + buf);
-  if (a.low_pairing) {
-    std::snprintf(buf, sizeof buf, kLowPairing, a.paired_percent);
-    parts_->log(std::string("wallar: ") + buf);
-  }
+  // A record for the log thread on the appliance; a line here for record.
+  const auto say = [this](const char* format, std::initializer_list<LogArg> args) {
+    post_or_log(
+        parts_->ring, [this](const std::string& l) { parts_->log("wallar: " + l); }, format, args);
+  };
+  say(kLine, {window_s, a.paired_percent, frames, a.mean_skew_ms, a.max_skew_ms, a.tolerance_ms});
+  if (a.low_pairing) say(kLowPairing, {a.paired_percent});
   if (a.high_skew) {
-    std::snprintf(buf, sizeof buf, kHighSkew, a.max_skew_ms, a.tolerance_ms, rig);
-    parts_->log(std::string("wallar: ") + buf);
+    say(kHighSkew, {a.max_skew_ms, a.tolerance_ms, rig});
   } else if (!parts_->trigger) {
-    std::snprintf(buf, sizeof buf, kFreeRunning, rig, a.max_skew_ms);
-    parts_->log(std::string("wallar: ") + buf);
+    say(kFreeRunning, {rig, a.max_skew_ms});
   }
 }
 

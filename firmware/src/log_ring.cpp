@@ -94,6 +94,22 @@ LogRing::LogRing(std::size_t capacity) {
   mask_ = n - 1;
 }
 
+void post_or_log(LogRing* ring, const std::function<void(const std::string&)>& fallback,
+                 const char* format, std::initializer_list<LogArg> args) {
+  if (ring != nullptr) {
+    ring->post(format, args);
+    return;
+  }
+  LogRecord r;
+  r.format = format;
+  std::size_t i = 0;
+  for (const LogArg& a : args) {
+    if (i == r.args.size()) break;
+    r.args[i++] = a;
+  }
+  fallback(format_log_record(r));
+}
+
 bool LogRing::post(const char* format, std::initializer_list<LogArg> args,
                    const char* copied) noexcept {
   std::size_t pos = enqueue_.load(std::memory_order_relaxed);

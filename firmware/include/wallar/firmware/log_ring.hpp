@@ -75,6 +75,13 @@ struct LogRecord {
 /// The line a record stands for (the log thread's work; allocates).
 std::string format_log_record(const LogRecord& record);
 
+class LogRing;
+/// One line: a record in `ring` when there is one (a fixed-rate thread formats nothing), else
+/// formatted here as the log thread would and handed to `fallback` (commands that run no log
+/// thread: record, imu). At most LogRecord::kMaxArgs arguments.
+void post_or_log(LogRing* ring, const std::function<void(const std::string&)>& fallback,
+                 const char* format, std::initializer_list<LogArg> args);
+
 class LogRing {
  public:
   /// `capacity` is rounded up to a power of two; allocated here, once.
