@@ -123,8 +123,8 @@ void LiveView::loop(const RigCalibration& rig, const HeadsetViewOptions& options
       hud.degraded = post.degraded != nullptr ? post.degraded : "";
       hud.image_frozen = post.camera_lost;
       const bool valid = post.state == dsp::TrackingState::kTracking && !post.camera_lost;
-      // Every draw but an output's first, which compiles the software rasteriser's shaders
-      // (seconds under emulation), is a job the supervisor watches.
+      // Every draw but an output's first (its first present sets the display's mode; the
+      // shaders were compiled by the renderer's warm-up draw) is a job the supervisor watches.
       if (view->stats().frames > 0) heartbeat_.begin(monotonic_now_ns());
       if (before_draw_) before_draw_(monotonic_now_ns());
       const TimeNs t0 = monotonic_now_ns();

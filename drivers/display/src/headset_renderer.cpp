@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
@@ -307,6 +308,42 @@ struct HeadsetRenderer::Impl {
       std::snprintf(buf, sizeof buf, "display: renderer set-up failed (GL error 0x%04x)", e);
       throw DisplayError(buf);
     }
+    warm_up();
+  }
+
+  /// Draws one frame with every program and every state a real frame uses (a camera image,
+  /// a floor's fill, outline and grid, the HUD's two lines, the lens pass), not presented, and
+  /// waits for it. A software rasteriser (llvmpipe) compiles a shader's machine code at its
+  /// first draw, not at link: seconds under emulation, which the first wall would otherwise
+  /// spend inside a draw the supervisor watches (a render thread "stalled" and restarted).
+  void warm_up() {
+    constexpr int kW = 16, kH = 12;
+    HeadsetFrame frame;
+    for (EyeInput& eye : frame.eyes) {
+      eye.image = Image::allocate(kW, kH, PixelFormat::kGray8);
+      std::memset(eye.image.mutable_data(), 128, static_cast<std::size_t>(kW) * kH);
+      eye.camera = EyeCamera{kW, kH, 10.0, 10.0, kW / 2.0, kH / 2.0, {0.01, 0.0, 0.0, 0.0}};
+    }
+    WallModel model;
+    Wall floor;  // 2 m ahead of both eyes, facing them
+    floor.id = 1;
+    floor.kind = SurfaceKind::kFloor;
+    floor.plane = Plane{-Eigen::Vector3d::UnitZ(), -2.0};
+    floor.origin = Eigen::Vector3d(0.0, 0.0, 2.0);
+    floor.u = Eigen::Vector3d::UnitX();
+    floor.v = -Eigen::Vector3d::UnitY();
+    floor.extent_uv_m = {{-1.0, -1.0}, {1.0, -1.0}, {1.0, 1.0}, {-1.0, 1.0}};
+    model.walls.push_back(std::move(floor));
+    frame.walls = &model;
+    frame.hud.degraded = "warm-up";
+    compose(frame);
+    glFinish();
+    if (const GLenum e = glGetError(); e != GL_NO_ERROR) {
+      char buf[96];
+      std::snprintf(buf, sizeof buf,
+                    "display: the renderer's warm-up draw failed (GL error 0x%04x)", e);
+      throw DisplayError(buf);
+    }
   }
 
   ~Impl() {
@@ -541,9 +578,8 @@ struct HeadsetRenderer::Impl {
     }
   }
 
-  RenderTiming draw(const HeadsetFrame& frame, std::span<std::uint8_t> capture_rgba) {
-    const TimeNs t0 = monotonic_now_ns();
-    RenderTiming timing;
+  /// Both eyes (and the lens pass) into the default framebuffer, not presented.
+  void compose(const HeadsetFrame& frame) {
     glBindFramebuffer(GL_FRAMEBUFFER, scene_fbo);  // 0 without the lens pass
     glViewport(0, 0, output.width_px(), output.height_px());
     glClearColor(0.0f, 0.0f, 0.0f, 1.0f);
@@ -564,6 +600,12 @@ struct HeadsetRenderer::Impl {
     if (options.hud) update_hud(frame);
     for (int eye = 0; eye < 2; ++eye) draw_eye(eye, frame);
     if (scene_fbo != 0) lens_pass();
+  }
+
+  RenderTiming draw(const HeadsetFrame& frame, std::span<std::uint8_t> capture_rgba) {
+    const TimeNs t0 = monotonic_now_ns();
+    RenderTiming timing;
+    compose(frame);
     if (!capture_rgba.empty()) output.read_pixels(capture_rgba);  // the default framebuffer
     timing.presented = output.present(timing.present_t_ns);
     timing.render_ns = timing.present_t_ns - t0;

@@ -84,9 +84,9 @@ class LiveView {
   /// The output's description (after construction).
   [[nodiscard]] const std::string& display() const { return display_; }
   [[nodiscard]] const RtThread* thread() const { return thread_.get(); }
-  /// A job per draw (until present returned; not an output's first draw, which compiles
-  /// shaders), any thread: a draw stuck in a page flip or a GPU call reads as silent; waiting
-  /// for frames (the camera lost) does not.
+  /// A job per draw (until present returned; not an output's first draw, whose present sets
+  /// the display's mode; the renderer compiled its shaders before), any thread: a draw stuck in a
+  /// page flip or a GPU call reads as silent; waiting for frames (the camera lost) does not.
   [[nodiscard]] const Heartbeat& heartbeat() const { return heartbeat_; }
 
  private:

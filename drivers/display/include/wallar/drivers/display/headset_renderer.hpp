@@ -95,7 +95,9 @@ EyeViewport eye_viewport(int display_width_px, int display_height_px, int eye, i
 
 class HeadsetRenderer {
  public:
-  /// Compiles the shaders and allocates every buffer; throws DisplayError on GL failure.
+  /// Compiles the shaders, allocates every buffer and draws one frame with every program and
+  /// state, not presented (a software rasteriser compiles a shader's code at its first draw:
+  /// the first real frame with a wall then compiles nothing); throws DisplayError on GL failure.
   HeadsetRenderer(DisplayOutput& output, const RendererOptions& options);
   ~HeadsetRenderer();
   HeadsetRenderer(const HeadsetRenderer&) = delete;
