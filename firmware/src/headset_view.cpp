@@ -45,7 +45,9 @@ HeadsetView::HeadsetView(const RigCalibration& rig, const HeadsetViewOptions& op
     : rig_(rig), options_(options) {
   if (options_.png_every < 1) options_.png_every = 1;
   output_ = options_.open(options_.display);
-  renderer_ = std::make_unique<display::HeadsetRenderer>(*output_, options_.renderer);
+  std::array<display::EyeCamera, 2> cameras;
+  for (std::size_t eye = 0; eye < 2; ++eye) eye_camera(rig_.cams[eye], cameras[eye]);
+  renderer_ = std::make_unique<display::HeadsetRenderer>(*output_, options_.renderer, cameras);
   if (!options_.png_dir.empty()) {
     std::filesystem::create_directories(options_.png_dir);
     capture_rgba_.resize(static_cast<std::size_t>(output_->width_px()) * output_->height_px() * 4);

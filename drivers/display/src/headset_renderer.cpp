@@ -253,7 +253,8 @@ struct HeadsetRenderer::Impl {
   std::string hud_line;
   float line_width_max = 1.0f;
 
-  Impl(DisplayOutput& out, const RendererOptions& opts) : output(out), options(opts) {
+  Impl(DisplayOutput& out, const RendererOptions& opts, const std::array<EyeCamera, 2>& cameras)
+      : output(out), options(opts) {
     camera_program = link(kQuadVertex, kCameraFragment, "camera");
     world_program = link(kWorldVertex, kColourFragment, "world");
     texture_program = link(kQuadVertex, kTextureFragment, "hud");
@@ -308,21 +309,27 @@ struct HeadsetRenderer::Impl {
       std::snprintf(buf, sizeof buf, "display: renderer set-up failed (GL error 0x%04x)", e);
       throw DisplayError(buf);
     }
-    warm_up();
+    warm_up(cameras);
   }
 
-  /// Draws one frame with every program and every state a real frame uses (a camera image,
-  /// a floor's fill, outline and grid, the HUD's two lines, the lens pass), not presented, and
+  /// Draws one frame with every program and every state a real frame uses (camera images, a
+  /// floor's fill, outline and grid, the HUD's two lines, the lens pass), not presented, and
   /// waits for it. A software rasteriser (llvmpipe) compiles a shader's machine code at its
   /// first draw, not at link: seconds under emulation, which the first wall would otherwise
-  /// spend inside a draw the supervisor watches (a render thread "stalled" and restarted).
-  void warm_up() {
-    constexpr int kW = 16, kH = 12;
+  /// spend inside a draw the supervisor watches (a render thread "stalled" and restarted), and
+  /// hundreds of milliseconds natively (the first frames' deadline misses). Images of the
+  /// cameras' sizes allocate their textures here, once (a camera of width 0: a small stand-in).
+  void warm_up(const std::array<EyeCamera, 2>& cameras) {
     HeadsetFrame frame;
-    for (EyeInput& eye : frame.eyes) {
-      eye.image = Image::allocate(kW, kH, PixelFormat::kGray8);
-      std::memset(eye.image.mutable_data(), 128, static_cast<std::size_t>(kW) * kH);
-      eye.camera = EyeCamera{kW, kH, 10.0, 10.0, kW / 2.0, kH / 2.0, {0.01, 0.0, 0.0, 0.0}};
+    for (std::size_t i = 0; i < 2; ++i) {
+      EyeInput& eye = frame.eyes[i];
+      eye.camera = cameras[i];
+      if (eye.camera.width_px <= 0 || eye.camera.height_px <= 0) {
+        eye.camera = EyeCamera{16, 12, 10.0, 10.0, 8.0, 6.0, {0.01, 0.0, 0.0, 0.0}};
+      }
+      const int w = eye.camera.width_px, h = eye.camera.height_px;
+      eye.image = Image::allocate(w, h, PixelFormat::kGray8);
+      std::memset(eye.image.mutable_data(), 128, static_cast<std::size_t>(w) * h);
     }
     WallModel model;
     Wall floor;  // 2 m ahead of both eyes, facing them
@@ -614,8 +621,9 @@ struct HeadsetRenderer::Impl {
   }
 };
 
-HeadsetRenderer::HeadsetRenderer(DisplayOutput& output, const RendererOptions& options)
-    : impl_(std::make_unique<Impl>(output, options)) {}
+HeadsetRenderer::HeadsetRenderer(DisplayOutput& output, const RendererOptions& options,
+                                 const std::array<EyeCamera, 2>& cameras)
+    : impl_(std::make_unique<Impl>(output, options, cameras)) {}
 HeadsetRenderer::~HeadsetRenderer() = default;
 RenderTiming HeadsetRenderer::draw(const HeadsetFrame& frame,
                                    std::span<std::uint8_t> capture_rgba) {

@@ -97,8 +97,11 @@ class HeadsetRenderer {
  public:
   /// Compiles the shaders, allocates every buffer and draws one frame with every program and
   /// state, not presented (a software rasteriser compiles a shader's code at its first draw:
-  /// the first real frame with a wall then compiles nothing); throws DisplayError on GL failure.
-  HeadsetRenderer(DisplayOutput& output, const RendererOptions& options);
+  /// the first real frame then compiles nothing); `cameras`, those whose images it will draw,
+  /// size the image textures once (width 0: allocated at the first image). Throws DisplayError
+  /// on GL failure.
+  HeadsetRenderer(DisplayOutput& output, const RendererOptions& options,
+                  const std::array<EyeCamera, 2>& cameras = {});
   ~HeadsetRenderer();
   HeadsetRenderer(const HeadsetRenderer&) = delete;
   HeadsetRenderer& operator=(const HeadsetRenderer&) = delete;
