@@ -3,10 +3,12 @@
 /// @brief The bus clear against a slave that holds SDA low, and the recovery's unbind and bind
 /// of the adapter's controller on a fake sysfs tree.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <string>
 #include <vector>
 
 #include "wallar/core/error.hpp"
@@ -74,7 +76,12 @@ TEST(I2cBusClear, AFreeBusGetsOnlyTheStopAndAStuckOneFailsAfterNineClocks) {
 // directory takes the controller's name in unbind and bind.
 class FakeSysfs {
  public:
-  FakeSysfs() : root_(fs::temp_directory_path() / "wallar_i2c_recovery_sysfs") {
+  // One tree per test and process: ctest runs the tests of this file side by side.
+  FakeSysfs()
+      : root_(fs::temp_directory_path() /
+              ("wallar_i2c_recovery_sysfs_" +
+               std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+               std::to_string(::getpid()))) {
     fs::remove_all(root_);
     const fs::path ctl = root_ / "devices/platform/axi/1000120000.pcie/1f00074000.i2c";
     fs::create_directories(ctl / "i2c-1");
