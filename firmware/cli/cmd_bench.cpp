@@ -10,6 +10,11 @@
 ///    dsp::make_sparse_map (2000 points, 3.5 % wall), one detection per iteration over the
 ///    scenes of seeds 1..kSeeds; counters success_pct (normal within 5 deg and offset within
 ///    0.1 m of the scene's wall) and mean_rounds.
+///  - walls/room_{3d,2d}/family: what `wallar walls` runs (dsp::RoomEstimator with the
+///    command's defaults: threshold 5 cm, up to 6 surfaces) on kSeeds scenes drawn at random
+///    from dsp::sparse_map_family (wall fraction 2 - 10 %, tilt 0 - 20 deg, a cabinet in half,
+///    clumped clutter in half); counters success_pct (the true wall among the surfaces),
+///    spurious_per_scene (surfaces on no true plane) and mean_surfaces.
 ///  - `wallar bench imu`: imu/attitude_update{,_mag}: one dsp::AttitudeFilter::update() on a
 ///    200 Hz stream of a turning body (target: under 1 us).
 ///  - `wallar bench track`: the tracker and mapper (bench_track.cpp).
@@ -38,6 +43,7 @@
 #include "commands.hpp"
 #include "wallar/dsp/imu/attitude_filter.hpp"
 #include "wallar/dsp/walls/plane_kernel.hpp"
+#include "wallar/dsp/walls/room.hpp"
 #include "wallar/dsp/walls/synthetic.hpp"
 #include "wallar/dsp/walls/wall_detector.hpp"
 
@@ -164,6 +170,56 @@ void bm_detect(benchmark::State& state, bool two_d, dsp::Sampling sampling) {
   state.counters["scenes"] = static_cast<double>(std::min<std::uint64_t>(i, kSeeds));
 }
 
+// ---- (d) the walls command over the scene family -------------------------------------------
+
+const std::vector<dsp::LabelledCloud>& family_maps() {
+  static const std::vector<dsp::LabelledCloud> scenes = [] {
+    std::vector<dsp::LabelledCloud> s;
+    for (std::uint64_t seed = 1; seed <= kSeeds; ++seed) {
+      s.push_back(dsp::make_sparse_map(dsp::sparse_map_family(seed)));
+    }
+    return s;
+  }();
+  return scenes;
+}
+
+bool same_plane(const Plane& a, const Plane& b) {
+  return angle_deg(a.n, b.n) < 5.0 && std::abs(a.d - b.d) < 0.1;
+}
+
+// One iteration = one `wallar walls` estimate of scene i % kSeeds (its points loaded, every
+// surface searched, then the search that finds none).
+void bm_room(benchmark::State& state, bool two_d) {
+  const auto& scenes = family_maps();
+  std::size_t most = 0;
+  for (const auto& sc : scenes) most = std::max(most, sc.cloud.size());
+  dsp::RoomEstimator room(most);
+  std::uint64_t found = 0, spurious = 0, surfaces = 0, i = 0;
+  for (auto _ : state) {
+    const auto s = static_cast<std::size_t>(i++ % kSeeds);
+    dsp::RoomConfig cfg;  // the walls command's defaults
+    cfg.detector.threshold_m = 0.05;
+    cfg.detector.seed = s + 1;
+    if (two_d) cfg.gravity = 9.81 * scenes[s].down;
+    const dsp::RoomResult r = room.estimate(scenes[s].cloud, cfg);
+    benchmark::DoNotOptimize(r);
+    bool wall = false;
+    for (const Wall& w : r.model.walls) {
+      wall |= same_plane(w.plane, scenes[s].wall);
+      bool on_truth = false;
+      for (const Plane& t : scenes[s].surfaces) on_truth |= same_plane(w.plane, t);
+      spurious += on_truth ? 0 : 1;
+    }
+    found += wall ? 1 : 0;
+    surfaces += r.model.walls.size();
+  }
+  const auto n = static_cast<double>(std::max<std::uint64_t>(i, 1));
+  state.counters["success_pct"] = 100.0 * static_cast<double>(found) / n;
+  state.counters["spurious_per_scene"] = static_cast<double>(spurious) / n;
+  state.counters["mean_surfaces"] = static_cast<double>(surfaces) / n;
+  state.counters["scenes"] = static_cast<double>(std::min<std::uint64_t>(i, kSeeds));
+}
+
 void register_wall_benchmarks() {
   for (const std::int64_t n : {2048, 16384}) {
     benchmark::RegisterBenchmark("walls/kernel/simd", bm_kernel<true>)->Arg(n);
@@ -195,6 +251,12 @@ void register_wall_benchmarks() {
     benchmark::RegisterBenchmark(c.name,
                                  [c](benchmark::State& st) { bm_detect(st, c.two_d, c.sampling); })
         ->Iterations(c.iterations)
+        ->Unit(benchmark::kMicrosecond);
+  }
+  for (const bool two_d : {false, true}) {
+    benchmark::RegisterBenchmark(two_d ? "walls/room_2d/family" : "walls/room_3d/family",
+                                 [two_d](benchmark::State& st) { bm_room(st, two_d); })
+        ->Iterations(kSeeds)
         ->Unit(benchmark::kMicrosecond);
   }
 }

@@ -32,6 +32,7 @@ struct WallsArgs {
   std::uint32_t max_rounds = 200'000;
   std::uint64_t seed = 1;
   bool manhattan = false;
+  double surface_sigma = dsp::RoomConfig{}.min_excess_sigma;
   std::string json;
   std::string ply;
 };
@@ -44,6 +45,33 @@ Eigen::Vector3d parse_vec3(const std::string& text, const char* option) {
     throw CLI::ValidationError(option, "expects x,y,z (three numbers), got '" + text + "'");
   }
   return v;
+}
+
+/// Where the time went: set-up, each search in turn (what it ended with), extents and ids.
+std::string stage_times(const dsp::RoomResult& r) {
+  std::ostringstream out;
+  out.setf(std::ios::fixed);
+  out.precision(2);
+  out << "  time: set-up " << 1e3 * ns_to_s(r.setup_ns) << " ms\n";
+  for (std::size_t i = 0; i < r.searches.size(); ++i) {
+    const dsp::RoomSearch& s = r.searches[i];
+    out << "  time: search " << i + 1 << " " << 1e3 * ns_to_s(s.time_ns) << " ms (" << s.rounds
+        << " rounds)";
+    if (s.horizontal_rounds > 0) {
+      out << " + floor/ceiling " << 1e3 * ns_to_s(s.horizontal_time_ns) << " ms ("
+          << s.horizontal_rounds << " rounds)";
+    }
+    out << ": " << dsp::to_string(s.outcome);
+    if (s.outcome == dsp::RoomSearch::Outcome::kSurface ||
+        s.outcome == dsp::RoomSearch::Outcome::kMerged) {
+      out << " (" << to_string(s.kind) << ", " << s.inliers << " inliers)";
+    } else if (s.outcome == dsp::RoomSearch::Outcome::kTooSmall) {
+      out << " (best " << s.inliers << " inliers)";
+    }
+    out << "\n";
+  }
+  out << "  time: extents, merges and ids " << 1e3 * ns_to_s(r.finish_ns) << " ms\n";
+  return out.str();
 }
 
 int run_walls_command(const WallsArgs& a) {
@@ -81,6 +109,7 @@ int run_walls_command(const WallsArgs& a) {
     if (cfg.viewpoints.size() > 64) throw CLI::ValidationError("--viewpoint", "at most 64");
   }
   cfg.max_surfaces = a.max_walls;
+  cfg.min_excess_sigma = a.surface_sigma;
   cfg.manhattan = a.manhattan;
 
   dsp::RoomEstimator estimator(cloud.size());
@@ -95,7 +124,7 @@ int run_walls_command(const WallsArgs& a) {
   }
   text << ", " << (cfg.gravity ? "2-D (gravity-aligned)" : "3-D") << " " << a.method << ", "
        << result.rounds << " rounds, " << time_ms << " ms\n"
-       << firmware::to_text(result);
+       << firmware::to_text(result) << stage_times(result);
   nlohmann::json out = firmware::to_json(result);
   out["non_finite_skipped"] = read_stats.non_finite_skipped;
   out["time_ms"] = time_ms;
@@ -144,6 +173,11 @@ void add_walls_command(CLI::App& app, std::function<int()>& run) {
                   "Gravity gx,gy,gz in the cloud's frame: 2-D mode, floor and ceiling");
   cmd->add_option("--viewpoint", a->viewpoints, "Camera centre x,y,z (repeatable; default origin)");
   cmd->add_option("--view-dir", a->view_dir, "Viewing direction for the 3-D facing check")
+      ->capture_default_str();
+  cmd->add_option("--surface-sigma", a->surface_sigma,
+                  "A surface's band holds this many standard deviations more points than the "
+                  "bands beside it, else the search ends there (0: off)")
+      ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--max-walls", a->max_walls, "Most surfaces to report")
       ->check(CLI::Range(1, 64))

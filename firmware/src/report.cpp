@@ -8,7 +8,6 @@
 #include <fstream>
 
 #include "wallar/core/error.hpp"
-
 #include "wallar/dsp/walls/room_check.hpp"
 
 namespace wallar::firmware {
@@ -113,7 +112,29 @@ nlohmann::json to_json(const dsp::RoomResult& r) {
                         {"rmse_m", s.rmse_m},
                         {"extent", extent}});
   }
-  return {{"surfaces", surfaces}, {"rounds", r.rounds}, {"points", r.points}};
+  nlohmann::json searches = nlohmann::json::array();
+  for (const dsp::RoomSearch& s : r.searches) {
+    nlohmann::json j = {{"outcome", dsp::to_string(s.outcome)},
+                        {"inliers", s.inliers},
+                        {"rounds", s.rounds},
+                        {"ms", 1e3 * ns_to_s(s.time_ns)}};
+    if (s.outcome == dsp::RoomSearch::Outcome::kSurface ||
+        s.outcome == dsp::RoomSearch::Outcome::kMerged) {
+      j["kind"] = std::string(to_string(s.kind));
+    }
+    if (s.horizontal_rounds > 0) {
+      j["horizontal_rounds"] = s.horizontal_rounds;
+      j["horizontal_ms"] = 1e3 * ns_to_s(s.horizontal_time_ns);
+    }
+    searches.push_back(std::move(j));
+  }
+  return {{"surfaces", surfaces},
+          {"rounds", r.rounds},
+          {"points", r.points},
+          {"stages",
+           {{"setup_ms", 1e3 * ns_to_s(r.setup_ns)},
+            {"searches", searches},
+            {"finish_ms", 1e3 * ns_to_s(r.finish_ns)}}}};
 }
 
 WallModel walls_from_json(const nlohmann::json& j, const std::string& where) {

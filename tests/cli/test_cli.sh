@@ -262,8 +262,30 @@ for s in d['surfaces']:
     assert len(s['extent']) >= 3
 floor = [s for s in d['surfaces'] if s['kind'] == 'floor'][0]
 assert floor['normal'][1] < -0.99, floor  # floor's front is up (-y)
+# Where the time went: one search per surface found, each timed, then the one that ends it.
+st = d['stages']
+found = [x for x in st['searches'] if x['outcome'] in ('surface', 'merged')]
+assert len(found) >= 6 and all(x['ms'] > 0 and x['rounds'] > 0 for x in found), st
+assert st['searches'][-1]['outcome'] in ('too small', 'none', 'not a surface') or len(st['searches']) == 6, st
+assert sum(x['ms'] + x.get('horizontal_ms', 0) for x in st['searches']) <= d['time_ms'], st
 PY
+  expect_out "time: search 1 "
   head -c 200 "$tmp/room.ply" | grep -q "element vertex 900" || fail "ply header"
+  # Scattered points are not a surface: 600 uniform in a box, one 4 x 3 m wall of 120 behind
+  # them. The wall is reported alone; with the band test off (--surface-sigma 0), slabs of the
+  # scatter are reported as walls too.
+  python3 - "$tmp/scatter.csv" <<'PY'
+import random, sys
+random.seed(7)
+u = random.uniform
+with open(sys.argv[1], 'w') as f:
+    for _ in range(120): f.write(f'{u(-2,2)},{u(-1.5,1.5)},{3+u(-.01,.01)}\n')
+    for _ in range(1400): f.write(f'{u(-2,2)},{u(-1.5,1.5)},{u(0.5,2.95)}\n')
+PY
+  run walls "$tmp/scatter.csv" --json -; expect_rc 0
+  [ "$(json "len(d['surfaces']), d['stages']['searches'][-1]['outcome']")" = "1 not a surface" ] || fail "scatter: $(json "[(s['d'], s['inliers']) for s in d['surfaces']]")"
+  run walls "$tmp/scatter.csv" --surface-sigma 0 --json -; expect_rc 0
+  [ "$(json "len(d['surfaces']) > 2")" = True ] || fail "scatter without the band test: $(json "len(d['surfaces'])")"
   ;;
 walls_bad_input)
   : >"$tmp/empty.ply"

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <random>
+#include <set>
 
 #include "test_support.hpp"
 #include "wallar/drivers/cloud/cloud_io.hpp"
@@ -301,6 +302,146 @@ TEST(Room, FourWallsFloorAndCeilingWithKindsExtentsAndStableIds) {
     for (const Wall& w1 : r.model.walls) same_id |= w1.id == w2.id && is_plane(w1.plane, w2.plane);
     EXPECT_TRUE(same_id) << "id " << w2.id;
   }
+}
+
+// `wallar walls` reports where its time goes: each search in turn, what it ended with, and
+// the set-up and finishing work, which together are the whole estimate.
+TEST(Room, EachSearchIsTimedAndSaysHowItEnded) {
+  const auto scene = make_room_scene({});
+  RoomConfig cfg;
+  cfg.detector.threshold_m = 0.04;
+  cfg.gravity = kGravity;
+  cfg.max_surfaces = 10;
+  RoomEstimator room(10'000);
+  const TimeNs t0_ns = monotonic_now_ns();
+  const RoomResult r = room.estimate(scene.cloud, cfg);
+  const DurationNs total_ns = monotonic_now_ns() - t0_ns;
+  ASSERT_EQ(r.model.walls.size(), 6u);
+  ASSERT_GE(r.searches.size(), 7u) << "six surfaces, then one search that finds none";
+  ASSERT_LE(r.searches.size(), 10u);
+  std::size_t surfaces = 0;
+  std::uint32_t rounds = 0;
+  DurationNs sum_ns = r.setup_ns + r.finish_ns;
+  for (std::size_t i = 0; i < r.searches.size(); ++i) {
+    const RoomSearch& s = r.searches[i];
+    const bool last = i + 1 == r.searches.size();
+    if (!last) {
+      EXPECT_TRUE(s.outcome == RoomSearch::Outcome::kSurface ||
+                  s.outcome == RoomSearch::Outcome::kMerged)
+          << "search " << i + 1 << ": " << to_string(s.outcome);
+    }
+    surfaces += s.outcome == RoomSearch::Outcome::kSurface;
+    EXPECT_GT(s.rounds, 0u);
+    EXPECT_GT(s.time_ns, 0);
+    rounds += s.rounds + s.horizontal_rounds;
+    sum_ns += s.time_ns + s.horizontal_time_ns;
+  }
+  EXPECT_TRUE(r.searches.back().outcome == RoomSearch::Outcome::kTooSmall ||
+              r.searches.back().outcome == RoomSearch::Outcome::kNone)
+      << to_string(r.searches.back().outcome);
+  EXPECT_EQ(surfaces, r.model.walls.size());
+  EXPECT_EQ(rounds, r.rounds);
+  EXPECT_GT(r.searches.front().horizontal_rounds, 0u) << "2-D: floor and ceiling searched too";
+  EXPECT_LE(sum_ns, total_ns);
+  EXPECT_GE(static_cast<double>(sum_ns), 0.9 * static_cast<double>(total_ns))
+      << "the stages are the whole estimate";
+}
+
+// Before the band test, `wallar walls` on the benchmark's sparse map (a 3.5 % wall behind
+// uniform clutter, its default 5 cm threshold) reported the wall and four or five more
+// "walls": slabs through the clutter with as many points beside them as in them, 15 surfaces
+// over these three seeds. Now the wall comes first, the search ends at the first slab through
+// the clutter, and at most the clutter's top or bottom edge (nothing beyond it: a step in
+// density) is reported besides.
+TEST(Room, ASlabOfScatteredPointsIsNotASurface) {
+  std::size_t surfaces = 0;
+  for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+    SparseMapParams p;
+    p.seed = seed;
+    const auto scene = make_sparse_map(p);
+    RoomConfig cfg;
+    cfg.detector.threshold_m = 0.05;
+    RoomEstimator room(scene.cloud.size());
+    const RoomResult r = room.estimate(scene.cloud, cfg);
+    ASSERT_GE(r.model.walls.size(), 1u) << "seed " << seed;
+    surfaces += r.model.walls.size();
+    EXPECT_TRUE(is_plane(r.model.walls[0].plane, scene.wall)) << "seed " << seed;
+    EXPECT_GT(r.searches[0].excess_sigma, 8.0) << "the wall stands out";
+    const RoomSearch& last = r.searches.back();
+    EXPECT_EQ(last.outcome, RoomSearch::Outcome::kNotASurface) << "seed " << seed;
+    EXPECT_LT(last.excess_sigma, cfg.min_excess_sigma);
+    EXPECT_GE(last.inliers, 40u) << "big enough: only the band test rejects it";
+    // 2-D with gravity: one wall, the true one.
+    cfg.gravity = kGravity;
+    const RoomResult r2 = room.estimate(scene.cloud, cfg);
+    int walls = 0;
+    for (const Wall& w : r2.model.walls) {
+      if (w.kind != SurfaceKind::kWall) continue;
+      ++walls;
+      EXPECT_TRUE(is_plane(w.plane, scene.wall)) << "seed " << seed << " d " << w.plane.d;
+    }
+    EXPECT_EQ(walls, 1) << "seed " << seed;
+  }
+  EXPECT_LE(surfaces, 4u);
+}
+
+TEST(Room, BandCountsAndTheExcessOfAPlanesBandOverItsNeighbours) {
+  PointCloud cloud;
+  const auto add = [&cloud](int count, float z) {
+    for (int i = 0; i < count; ++i) cloud.push_back(Eigen::Vector3f(0.01f * i, 0.0f, z));
+  };
+  add(30, 2.0f);  // on the plane z = 2 (n = -z toward the viewer at the origin: d = -2)
+  add(10, 1.9f);  // 10 cm in front: within [t, 3t) for t = 5 cm
+  add(4, 2.1f);   // 10 cm behind
+  add(5, 2.5f);   // beyond 3t: in no band
+  add(6, 1.96f);  // 4 cm in front: on the band
+  const BandCounts c = band_counts(cloud, Plane{-Eigen::Vector3d::UnitZ(), -2.0}, 0.05);
+  EXPECT_EQ(c.on, 36u);
+  EXPECT_EQ(c.front, 10u);
+  EXPECT_EQ(c.behind, 4u);
+  EXPECT_NEAR(c.excess_sigma(), (36.0 - 7.0) / std::sqrt(8.0), 1e-12);
+  const BandCounts flat{20, 21, 19};  // a slab through scattered points
+  EXPECT_LT(std::abs(flat.excess_sigma()), 1.0);
+}
+
+TEST(SparseMapFamily, ScenesVaryAsDeclaredAndTheirPlanesAndGravityTurnWithTheTilt) {
+  std::set<std::size_t> clusters;
+  int cabinets = 0;
+  for (std::uint64_t seed = 1; seed <= 40; ++seed) {
+    const SparseMapParams p = sparse_map_family(seed);
+    EXPECT_EQ(p.seed, seed);
+    EXPECT_GE(p.wall_fraction, 0.02);
+    EXPECT_LT(p.wall_fraction, 0.10);
+    EXPECT_GE(p.tilt_deg, 0.0);
+    EXPECT_LT(p.tilt_deg, 20.0);
+    clusters.insert(p.clutter_clusters);
+    cabinets += p.front_plane_points > 0;
+    const auto scene = make_sparse_map(p);
+    ASSERT_EQ(scene.cloud.size(), p.points);
+    ASSERT_EQ(scene.surfaces.size(), p.front_plane_points > 0 ? 2u : 1u);
+    EXPECT_NEAR(scene.down.norm(), 1.0, 1e-12);
+    EXPECT_NEAR(scene.wall.n.dot(scene.down), 0.0, 1e-12) << "the wall stays vertical";
+    EXPECT_NEAR(std::acos(scene.down.dot(Eigen::Vector3d::UnitY())) * 180.0 / M_PI, p.tilt_deg,
+                1e-9);
+    for (std::size_t i = 0; i < scene.cloud.size(); ++i) {
+      const Eigen::Vector3d q = scene.cloud.point(i).cast<double>();
+      if (scene.labels[i] == PointLabel::kWall) {
+        EXPECT_LT(std::abs(scene.wall.signed_distance(q)), 0.5 * p.noise_m + 1e-5);
+      } else if (scene.labels[i] == PointLabel::kFrontPlane) {
+        EXPECT_LT(std::abs(scene.surfaces[1].signed_distance(q)), 0.5 * p.noise_m + 1e-5);
+      }
+    }
+  }
+  EXPECT_GT(clusters.size(), 3u) << "uniform clutter and several clump counts";
+  EXPECT_GT(cabinets, 10);
+  EXPECT_LT(cabinets, 30);
+  // The default scene has none of the variations (GoldenWalls pins its detections).
+  const auto base = make_sparse_map({});
+  for (const PointLabel label : base.labels) {
+    EXPECT_TRUE(label == PointLabel::kWall || label == PointLabel::kBacklier ||
+                label == PointLabel::kOutlier);
+  }
+  EXPECT_EQ(base.down, Eigen::Vector3d::UnitY());
 }
 
 TEST(Room, ThreeDModeWithoutGravityReportsWalls) {

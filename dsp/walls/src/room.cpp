@@ -17,6 +17,29 @@ bool same_plane(const Plane& a, const Plane& b, double angle_rad, double offset_
 
 }  // namespace
 
+BandCounts band_counts(const PointCloud& cloud, const Plane& plane, double threshold_m) {
+  const Eigen::Vector3f n = plane.n.cast<float>();
+  const auto d = static_cast<float>(plane.d);
+  const auto t = static_cast<float>(threshold_m);
+  BandCounts c;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const float s = n.x() * cloud.x[i] + n.y() * cloud.y[i] + n.z() * cloud.z[i] - d;
+    if (std::abs(s) < t) {
+      ++c.on;
+    } else if (s >= t && s < 3 * t) {
+      ++c.front;
+    } else if (s <= -t && s > -3 * t) {
+      ++c.behind;
+    }
+  }
+  return c;
+}
+
+double BandCounts::excess_sigma() const {
+  const double expected = 0.5 * (static_cast<double>(front) + static_cast<double>(behind));
+  return (static_cast<double>(on) - expected) / std::sqrt(expected + 1.0);
+}
+
 void set_extent(Wall& wall, const std::vector<Eigen::Vector3d>& inliers,
                 const std::optional<Eigen::Vector3d>& up) {
   const Eigen::Vector3d& n = wall.plane.n;
@@ -43,6 +66,14 @@ void set_extent(Wall& wall, const std::vector<Eigen::Vector3d>& inliers,
 RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& config,
                                    const WallModel* previous) {
   RoomResult result;
+  TimeNs t_ns = monotonic_now_ns();
+  // Time since the last stamp, and a new stamp.
+  const auto lap = [&t_ns] {
+    const TimeNs now_ns = monotonic_now_ns();
+    const DurationNs dt_ns = now_ns - t_ns;
+    t_ns = now_ns;
+    return dt_ns;
+  };
   detector_.mutable_config() = config.detector;
   detector_.set_points(cloud, config.gravity);
   detector_.set_viewpoints(config.viewpoints);
@@ -63,12 +94,22 @@ RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& co
     }
   }
   bool have_floor = false, have_ceiling = false;
+  result.setup_ns = lap();
+  DurationNs finish_ns = 0;
+  result.searches.reserve(static_cast<std::size_t>(std::max(config.max_surfaces, 0)));
   for (int s = 0; s < config.max_surfaces; ++s) {
     Detection best;
+    RoomSearch& search = result.searches.emplace_back();
     if (up) {
       const Detection wall = detector_.detect_vertical(warm_vertical);
+      search.rounds = wall.rounds;
+      search.time_ns = lap();
       Detection horizontal;
-      if (!(have_floor && have_ceiling)) horizontal = detector_.detect_horizontal(warm_horizontal);
+      if (!(have_floor && have_ceiling)) {
+        horizontal = detector_.detect_horizontal(warm_horizontal);
+        search.horizontal_rounds = horizontal.rounds;
+        search.horizontal_time_ns = lap();
+      }
       result.rounds += wall.rounds + horizontal.rounds;
       // Both searches score in the same units; the better surface is taken first. A second
       // floor or ceiling is not accepted.
@@ -79,8 +120,22 @@ RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& co
     } else {
       best = detector_.detect_3d(warm_3d);
       result.rounds += best.rounds;
+      search.rounds = best.rounds;
+      search.time_ns = lap();
     }
-    if (!best.found || best.inliers < min_inliers) break;
+    search.inliers = best.found ? best.inliers : 0;
+    if (!best.found || best.inliers < min_inliers) {
+      search.outcome = best.found ? RoomSearch::Outcome::kTooSmall : RoomSearch::Outcome::kNone;
+      break;
+    }
+    if (config.min_excess_sigma > 0.0) {
+      const BandCounts bands = band_counts(cloud, best.plane, config.detector.threshold_m);
+      search.excess_sigma = bands.excess_sigma();
+      if (search.excess_sigma < config.min_excess_sigma) {
+        search.outcome = RoomSearch::Outcome::kNotASurface;
+        break;
+      }
+    }
 
     detector_.remove_inliers(best.plane, &inliers_);
     RoomSurface surface;
@@ -123,7 +178,10 @@ RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& co
         break;
       }
     }
+    search.kind = wall.kind;
+    search.outcome = merged ? RoomSearch::Outcome::kMerged : RoomSearch::Outcome::kSurface;
     if (!merged) result.surfaces.push_back(std::move(surface));
+    finish_ns += lap();  // the surface check, extents and merging
   }
 
   // Ids: keep the previous model's where a surface matches, new ones otherwise.
@@ -150,6 +208,7 @@ RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& co
     result.model.walls.push_back(s.wall);
   }
   result.model.version = previous != nullptr ? previous->version + 1 : 1;
+  result.finish_ns = finish_ns + lap();
   return result;
 }
 

@@ -3,6 +3,7 @@
 /// @brief Labelled synthetic scenes for tests, evaluation and benchmarks.
 #include "wallar/dsp/walls/synthetic.hpp"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -152,14 +153,73 @@ LabelledCloud make_sparse_map(const SparseMapParams& p) {
     const double x = s.uniform(-2.0, 2.0);
     s.add(x, y, z, PointLabel::kBacklier);
   }
-  while (s.out.cloud.size() < p.points) {
-    const double z = s.uniform(0.5, p.wall_distance_m - half);  // z, y, x: see add()
+  const double cabinet_z = p.wall_distance_m - 0.6;
+  for (std::size_t i = 0; i < p.front_plane_points && s.out.cloud.size() < p.points; ++i) {
+    const double z = cabinet_z + s.uniform(-half, half);  // z, y, x: see add()
+    const double y = s.uniform(0.5, 1.5);
+    const double x = s.uniform(-0.5, 0.5);
+    s.add(x, y, z, PointLabel::kFrontPlane);
+  }
+  std::vector<Eigen::Vector3d> centres;
+  for (std::size_t k = 0; k < p.clutter_clusters; ++k) {
+    const double z = s.uniform(0.8, p.wall_distance_m - 0.3);  // z, y, x: see add()
     const double y = s.uniform(-1.5, 1.5);
     const double x = s.uniform(-2.0, 2.0);
-    s.add(x, y, z, PointLabel::kOutlier);
+    centres.emplace_back(x, y, z);
+  }
+  // A standard normal from two uniforms (Box-Muller): portable, unlike <random>'s.
+  const auto normal = [&s] {
+    const double u1 = 1.0 - s.uniform(0.0, 1.0);  // (0, 1]
+    const double u2 = s.uniform(0.0, 1.0);
+    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
+  };
+  while (s.out.cloud.size() < p.points) {
+    if (centres.empty()) {
+      const double z = s.uniform(0.5, p.wall_distance_m - half);  // z, y, x: see add()
+      const double y = s.uniform(-1.5, 1.5);
+      const double x = s.uniform(-2.0, 2.0);
+      s.add(x, y, z, PointLabel::kOutlier);
+      continue;
+    }
+    const auto k = static_cast<std::size_t>(s.uniform(0.0, static_cast<double>(centres.size())));
+    const Eigen::Vector3d& c = centres[std::min(k, centres.size() - 1)];
+    const double dz = 0.15 * normal();  // z, y, x: see add()
+    const double dy = 0.15 * normal();
+    const double dx = 0.15 * normal();
+    // Clumps stay in front of the wall's band.
+    const double z = std::min(c.z() + dz, p.wall_distance_m - half);
+    s.add(c.x() + dx, c.y() + dy, z, PointLabel::kClutter);
   }
   s.out.wall = Plane{-Eigen::Vector3d::UnitZ(), -p.wall_distance_m};
+  s.out.surfaces.push_back(s.out.wall);
+  if (p.front_plane_points > 0) s.out.surfaces.push_back({-Eigen::Vector3d::UnitZ(), -cabinet_z});
+  if (p.tilt_deg != 0.0) {
+    const Eigen::Matrix3d R =
+        Eigen::AngleAxisd(p.tilt_deg * M_PI / 180.0, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    PointCloud& c = s.out.cloud;
+    for (std::size_t i = 0; i < c.size(); ++i) {
+      const Eigen::Vector3d q = R * Eigen::Vector3d(c.x[i], c.y[i], c.z[i]);
+      c.x[i] = static_cast<float>(q.x());
+      c.y[i] = static_cast<float>(q.y());
+      c.z[i] = static_cast<float>(q.z());
+    }
+    s.out.wall.n = R * s.out.wall.n;  // about the origin: d stays
+    for (Plane& plane : s.out.surfaces) plane.n = R * plane.n;
+    s.out.down = R * s.out.down;
+  }
   return std::move(s.out);
+}
+
+SparseMapParams sparse_map_family(std::uint64_t seed) {
+  Scene s(seed ^ 0x5eed'fa41'17u);
+  SparseMapParams p;
+  p.seed = seed;
+  p.wall_fraction = s.uniform(0.02, 0.10);
+  p.tilt_deg = s.uniform(0.0, 20.0);
+  p.front_plane_points = s.uniform(0.0, 1.0) < 0.5 ? 60 : 0;
+  p.clutter_clusters =
+      s.uniform(0.0, 1.0) < 0.5 ? 0 : static_cast<std::size_t>(s.uniform(4.0, 13.0));
+  return p;
 }
 
 LabelledCloud make_room_scene(const RoomSceneParams& p) {

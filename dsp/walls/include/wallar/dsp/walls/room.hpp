@@ -2,7 +2,9 @@
 /// @file room.hpp
 /// @brief The room model: walls, floor and ceiling found one after another (thesis §5.2).
 ///
-/// Each found surface's inliers are removed before the next search. With gravity, walls are
+/// Each found surface's inliers are removed before the next search, which ends at the first
+/// candidate that is too small or no denser than the space beside it (a slab through scattered
+/// clutter, BandCounts), so clutter is not reported as walls. With gravity, walls are
 /// vertical planes (2-D search) and floor/ceiling horizontal ones (normal parallel to gravity,
 /// the floor below the viewpoints, the ceiling above); without, every surface is a 3-D wall.
 /// Optionally walls are kept Manhattan (parallel or perpendicular to the first within a
@@ -18,6 +20,7 @@
 #include <vector>
 
 #include "wallar/core/convex_hull.hpp"
+#include "wallar/core/time.hpp"
 #include "wallar/core/wall.hpp"
 #include "wallar/dsp/walls/wall_detector.hpp"
 
@@ -32,6 +35,11 @@ struct RoomConfig {
   double min_inlier_fraction = 0.02;  //!< ... nor those under this share of the points
   bool manhattan = false;
   double manhattan_tolerance_deg = 5.0;
+  /// A surface is denser than the space beside it: its inlier band must hold more points than
+  /// the mean of the two bands of the same width beside it (in front, behind) by this many
+  /// standard deviations (Poisson), else it is a slab of scattered points, not a surface, and
+  /// the search ends. 0: off.
+  double min_excess_sigma = 4.0;
   double merge_angle_deg = 5.0;
   double merge_offset_m = 0.1;
   double id_match_angle_deg = 10.0;  //!< a surface keeps a previous id within these
@@ -45,12 +53,62 @@ struct RoomSurface {
   std::uint32_t rounds = 0;
 };
 
+/// One pass of the sequential search, for the time report: where a detection's time goes.
+struct RoomSearch {
+  enum class Outcome : std::uint8_t {
+    kSurface,      //!< a new surface
+    kMerged,       //!< merged into one found before
+    kTooSmall,     //!< the best candidate had fewer inliers than a surface needs: the search ends
+    kNotASurface,  //!< the best candidate was no denser than beside it: the search ends
+    kNone,         //!< no candidate at all: the search ends
+  };
+  Outcome outcome = Outcome::kNone;
+  std::uint32_t rounds = 0;             //!< the wall search's (3-D or vertical)
+  DurationNs time_ns = 0;               //!< the wall search's
+  std::uint32_t horizontal_rounds = 0;  //!< 2-D: the floor/ceiling search's (0: not run)
+  DurationNs horizontal_time_ns = 0;
+  std::uint32_t inliers = 0;  //!< the best candidate's
+  double excess_sigma = 0.0;  //!< its points beyond those beside it (BandCounts), if checked
+  SurfaceKind kind = SurfaceKind::kWall;
+};
+
+/// Points of a cloud in three slabs of width 2t along a plane: its inlier band (-t, t), and
+/// beside it in front [t, 3t) and behind (-3t, -t].
+struct BandCounts {
+  std::uint32_t behind = 0, on = 0, front = 0;
+  /// How far the band's count is above the mean of its neighbours', in standard deviations of
+  /// that mean as a Poisson count: a surface stands out, a slab of scattered points does not.
+  [[nodiscard]] double excess_sigma() const;
+};
+BandCounts band_counts(const PointCloud& cloud, const Plane& plane, double threshold_m);
+[[nodiscard]] constexpr const char* to_string(RoomSearch::Outcome o) {
+  switch (o) {
+    case RoomSearch::Outcome::kSurface:
+      return "surface";
+    case RoomSearch::Outcome::kMerged:
+      return "merged";
+    case RoomSearch::Outcome::kTooSmall:
+      return "too small";
+    case RoomSearch::Outcome::kNotASurface:
+      return "not a surface";
+    case RoomSearch::Outcome::kNone:
+      return "none";
+  }
+  return "?";
+}
+
 struct RoomResult {
   WallModel model;
   std::vector<RoomSurface> surfaces;  //!< same order as model.walls
   std::uint32_t rounds = 0;           //!< all searches together
   std::size_t points = 0;             //!< finite points searched
   std::size_t skipped_non_finite = 0;
+  /// Time per stage (CLOCK_MONOTONIC): loading the points, each search in turn (the last one
+  /// finds no surface, unless max_surfaces ended it), the surface checks, extents, merges and
+  /// ids (`finish_ns`).
+  DurationNs setup_ns = 0;
+  std::vector<RoomSearch> searches;
+  DurationNs finish_ns = 0;
 };
 
 class RoomEstimator {

@@ -9,6 +9,7 @@
 /// Threading: pure functions.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
 
@@ -36,7 +37,9 @@ struct LabelledCloud {
   PointCloud cloud;
   std::vector<PointLabel> labels;
   Plane wall;                   //!< ground truth of the wall to find (n toward the viewpoint)
-  std::vector<Plane> surfaces;  //!< room scenes: every surface, in label order
+  std::vector<Plane> surfaces;  //!< room scenes: every surface, in label order; sparse maps:
+                                //!< the wall, then the front plane if any
+  Eigen::Vector3d down = Eigen::Vector3d::UnitY();  //!< gravity's direction in the cloud
 };
 
 /// §4.1: a wall_size x wall_size wall at wall_distance (normal along z); a plane_size square
@@ -72,6 +75,7 @@ LabelledCloud make_thesis_scene(const ThesisSceneParams& p);
 
 /// A sparse map as a tracker makes it: `points` in all, `wall_fraction` of them on a 4 x 3 m
 /// wall at wall_distance, the rest clutter filling the room in front of it, plus backliers.
+/// With the defaults of the variations below, the scenes of earlier versions, point for point.
 struct SparseMapParams {
   std::size_t points = 2000;
   double wall_fraction = 0.035;
@@ -79,8 +83,22 @@ struct SparseMapParams {
   double noise_m = 0.02;
   double wall_distance_m = 3.0;
   std::uint64_t seed = 1;
+  /// A cabinet: this many points on a 1 x 1 m front 0.6 m before the wall, its lower half,
+  /// facing the viewer (labelled kFrontPlane; a true surface).
+  std::size_t front_plane_points = 0;
+  /// Clutter: 0 = uniform in the room in front of the wall; k = around k centres (Gaussian,
+  /// sigma 0.15 m per axis), dense clumps of furniture.
+  std::size_t clutter_clusters = 0;
+  /// The whole scene pitched about x by this angle (a camera looking down): the points, the
+  /// true planes and `down` turn together.
+  double tilt_deg = 0.0;
 };
 LabelledCloud make_sparse_map(const SparseMapParams& p);
+
+/// One scene of the family the wall benchmark samples at random from `seed` (issue 22): 2,000
+/// points, a wall of 2 - 10 % of them, tilted 0 - 20 degrees, with a cabinet in front of the
+/// wall in half of the scenes and clutter in clumps in half.
+SparseMapParams sparse_map_family(std::uint64_t seed);
 
 /// A box room (x in [-w/2, w/2], y from ceiling -h_up to floor +h_down, z in [-d/2, d/2])
 /// around the viewpoint, with points on its 4 walls, floor and ceiling and clutter inside.
