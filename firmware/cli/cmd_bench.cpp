@@ -14,7 +14,8 @@
 ///    command's defaults: threshold 5 cm, up to 6 surfaces) on kSeeds scenes drawn at random
 ///    from dsp::sparse_map_family (wall fraction 2 - 10 %, tilt 0 - 20 deg, a cabinet in half,
 ///    clumped clutter in half); counters success_pct (the true wall among the surfaces),
-///    spurious_per_scene (surfaces on no true plane) and mean_surfaces.
+///    spurious_per_scene (surfaces on no true plane) and mean_surfaces; .../surface_sigma_4:
+///    the same with the opt-in band test (`wallar walls --surface-sigma 4`).
 ///  - `wallar bench imu`: imu/attitude_update{,_mag}: one dsp::AttitudeFilter::update() on a
 ///    200 Hz stream of a turning body (target: under 1 us).
 ///  - `wallar bench track`: the tracker and mapper (bench_track.cpp).
@@ -189,7 +190,7 @@ bool same_plane(const Plane& a, const Plane& b) {
 
 // One iteration = one `wallar walls` estimate of scene i % kSeeds (its points loaded, every
 // surface searched, then the search that finds none).
-void bm_room(benchmark::State& state, bool two_d) {
+void bm_room(benchmark::State& state, bool two_d, double surface_sigma) {
   const auto& scenes = family_maps();
   std::size_t most = 0;
   for (const auto& sc : scenes) most = std::max(most, sc.cloud.size());
@@ -200,6 +201,7 @@ void bm_room(benchmark::State& state, bool two_d) {
     dsp::RoomConfig cfg;  // the walls command's defaults
     cfg.detector.threshold_m = 0.05;
     cfg.detector.seed = s + 1;
+    cfg.min_excess_sigma = surface_sigma;
     if (two_d) cfg.gravity = 9.81 * scenes[s].down;
     const dsp::RoomResult r = room.estimate(scenes[s].cloud, cfg);
     benchmark::DoNotOptimize(r);
@@ -253,15 +255,20 @@ void register_wall_benchmarks() {
         ->Iterations(c.iterations)
         ->Unit(benchmark::kMicrosecond);
   }
-  for (const bool two_d : {false, true}) {
-    benchmark::RegisterBenchmark(two_d ? "walls/room_2d/family" : "walls/room_3d/family",
-                                 [two_d](benchmark::State& st) { bm_room(st, two_d); })
-        ->Iterations(kSeeds)
-        ->Unit(benchmark::kMicrosecond);
+  for (const double sigma : {0.0, 4.0}) {
+    for (const bool two_d : {false, true}) {
+      const std::string name =
+          std::string(two_d ? "walls/room_2d/family" : "walls/room_3d/family") +
+          (sigma > 0.0 ? "/surface_sigma_4" : "");
+      benchmark::RegisterBenchmark(
+          name.c_str(), [two_d, sigma](benchmark::State& st) { bm_room(st, two_d, sigma); })
+          ->Iterations(kSeeds)
+          ->Unit(benchmark::kMicrosecond);
+    }
   }
 }
 
-// ---- (d) the attitude filter ------------------------------------------------------------------
+// ---- (e) the attitude filter ------------------------------------------------------------------
 
 // One iteration = one AttitudeFilter::update() (gyro propagation + accelerometer update) on a
 // precomputed 200 Hz stream of a body turning with a gyro bias; the stream cycles, with its

@@ -175,8 +175,8 @@ void add_walls_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--view-dir", a->view_dir, "Viewing direction for the 3-D facing check")
       ->capture_default_str();
   cmd->add_option("--surface-sigma", a->surface_sigma,
-                  "A surface's band holds this many standard deviations more points than the "
-                  "bands beside it, else the search ends there (0: off)")
+                  "Report only surfaces whose band holds this many standard deviations more "
+                  "points than the bands beside it (e.g. 4; 0: off)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--max-walls", a->max_walls, "Most surfaces to report")

@@ -96,8 +96,10 @@ RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& co
   bool have_floor = false, have_ceiling = false;
   result.setup_ns = lap();
   DurationNs finish_ns = 0;
-  result.searches.reserve(static_cast<std::size_t>(std::max(config.max_surfaces, 0)));
-  for (int s = 0; s < config.max_surfaces; ++s) {
+  result.searches.reserve(static_cast<std::size_t>(std::max(config.max_surfaces, 0) +
+                                                   std::max(config.max_rejected, 0)));
+  int rejected = 0;  // candidates that failed the band test
+  for (int s = 0; s < config.max_surfaces + rejected; ++s) {
     Detection best;
     RoomSearch& search = result.searches.emplace_back();
     if (up) {
@@ -132,8 +134,11 @@ RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& co
       const BandCounts bands = band_counts(cloud, best.plane, config.detector.threshold_m);
       search.excess_sigma = bands.excess_sigma();
       if (search.excess_sigma < config.min_excess_sigma) {
+        // Set aside, not reported: the next search may still find a smaller real surface.
         search.outcome = RoomSearch::Outcome::kNotASurface;
-        break;
+        if (++rejected >= config.max_rejected) break;
+        detector_.remove_inliers(best.plane);
+        continue;
       }
     }
 
