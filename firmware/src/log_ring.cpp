@@ -94,6 +94,21 @@ LogRing::LogRing(std::size_t capacity) {
   mask_ = n - 1;
 }
 
+namespace {
+
+/// The record's format and arguments (at most kMaxArgs; the rest cleared).
+void set_args(LogRecord& r, const char* format, std::initializer_list<LogArg> args) noexcept {
+  r.format = format;
+  std::size_t i = 0;
+  for (const LogArg& a : args) {
+    if (i == r.args.size()) break;
+    r.args[i++] = a;
+  }
+  for (; i < r.args.size(); ++i) r.args[i] = LogArg{};
+}
+
+}  // namespace
+
 void post_or_log(LogRing* ring, const std::function<void(const std::string&)>& fallback,
                  const char* format, std::initializer_list<LogArg> args) {
   if (ring != nullptr) {
@@ -101,12 +116,7 @@ void post_or_log(LogRing* ring, const std::function<void(const std::string&)>& f
     return;
   }
   LogRecord r;
-  r.format = format;
-  std::size_t i = 0;
-  for (const LogArg& a : args) {
-    if (i == r.args.size()) break;
-    r.args[i++] = a;
-  }
+  set_args(r, format, args);
   fallback(format_log_record(r));
 }
 
@@ -129,13 +139,7 @@ bool LogRing::post(const char* format, std::initializer_list<LogArg> args,
   }
   LogRecord& r = cell->record;
   r.t_ns = monotonic_now_ns();
-  r.format = format;
-  std::size_t i = 0;
-  for (const LogArg& a : args) {
-    if (i == r.args.size()) break;
-    r.args[i++] = a;
-  }
-  for (; i < r.args.size(); ++i) r.args[i] = LogArg{};
+  set_args(r, format, args);
   r.copied[0] = '\0';
   if (copied != nullptr) {
     const std::size_t n = strnlen(copied, LogRecord::kCopiedChars);

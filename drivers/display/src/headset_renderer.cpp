@@ -119,6 +119,15 @@ void main() {
   throw DisplayError("display: " + what + ": " + log);
 }
 
+/// A pending GL error after `what` as a DisplayError ("display: WHAT failed (GL error 0x...)").
+void throw_if_gl_error(const char* what) {
+  if (const GLenum e = glGetError(); e != GL_NO_ERROR) {
+    char buf[128];
+    std::snprintf(buf, sizeof buf, "display: %s failed (GL error 0x%04x)", what, e);
+    throw DisplayError(buf);
+  }
+}
+
 GLuint compile(GLenum type, const char* source, const char* name) {
   const GLuint shader = glCreateShader(type);
   glShaderSource(shader, 1, &source, nullptr);
@@ -304,11 +313,7 @@ struct HeadsetRenderer::Impl {
     hull.reserve(256);
     scratch.reserve(256);
     hud_line.reserve(160);
-    if (const GLenum e = glGetError(); e != GL_NO_ERROR) {
-      char buf[96];
-      std::snprintf(buf, sizeof buf, "display: renderer set-up failed (GL error 0x%04x)", e);
-      throw DisplayError(buf);
-    }
+    throw_if_gl_error("renderer set-up");
     warm_up(cameras);
   }
 
@@ -345,12 +350,7 @@ struct HeadsetRenderer::Impl {
     frame.hud.degraded = "warm-up";
     compose(frame);
     glFinish();
-    if (const GLenum e = glGetError(); e != GL_NO_ERROR) {
-      char buf[96];
-      std::snprintf(buf, sizeof buf,
-                    "display: the renderer's warm-up draw failed (GL error 0x%04x)", e);
-      throw DisplayError(buf);
-    }
+    throw_if_gl_error("the renderer's warm-up draw");
   }
 
   ~Impl() {
