@@ -119,8 +119,13 @@ double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
 }
 
+/// The success criterion of every wall benchmark: normal within 5 deg, offset within 0.1 m.
+bool same_plane(const Plane& a, const Plane& b) {
+  return angle_deg(a.n, b.n) < 5.0 && std::abs(a.d - b.d) < 0.1;
+}
+
 bool is_wall(const dsp::Detection& d, const Plane& truth) {
-  return d.found && angle_deg(d.plane.n, truth.n) < 5.0 && std::abs(d.plane.d - truth.d) < 0.1;
+  return d.found && same_plane(d.plane, truth);
 }
 
 const std::vector<dsp::LabelledCloud>& sparse_maps() {
@@ -182,10 +187,6 @@ const std::vector<dsp::LabelledCloud>& family_maps() {
     return s;
   }();
   return scenes;
-}
-
-bool same_plane(const Plane& a, const Plane& b) {
-  return angle_deg(a.n, b.n) < 5.0 && std::abs(a.d - b.d) < 0.1;
 }
 
 // One iteration = one `wallar walls` estimate of scene i % kSeeds (its points loaded, every

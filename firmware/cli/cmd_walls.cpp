@@ -62,8 +62,7 @@ std::string stage_times(const dsp::RoomResult& r) {
           << s.horizontal_rounds << " rounds)";
     }
     out << ": " << dsp::to_string(s.outcome);
-    if (s.outcome == dsp::RoomSearch::Outcome::kSurface ||
-        s.outcome == dsp::RoomSearch::Outcome::kMerged) {
+    if (s.found_surface()) {
       out << " (" << to_string(s.kind) << ", " << s.inliers << " inliers)";
     } else if (s.outcome == dsp::RoomSearch::Outcome::kTooSmall) {
       out << " (best " << s.inliers << " inliers)";

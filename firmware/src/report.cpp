@@ -119,8 +119,7 @@ nlohmann::json to_json(const dsp::RoomResult& r) {
                         {"rounds", s.rounds},
                         {"ms", 1e3 * ns_to_s(s.time_ns)}};
     if (s.excess_sigma != 0.0) j["excess_sigma"] = s.excess_sigma;
-    if (s.outcome == dsp::RoomSearch::Outcome::kSurface ||
-        s.outcome == dsp::RoomSearch::Outcome::kMerged) {
+    if (s.found_surface()) {
       j["kind"] = std::string(to_string(s.kind));
     }
     if (s.horizontal_rounds > 0) {

@@ -326,9 +326,7 @@ TEST(Room, EachSearchIsTimedAndSaysHowItEnded) {
     const RoomSearch& s = r.searches[i];
     const bool last = i + 1 == r.searches.size();
     if (!last) {
-      EXPECT_TRUE(s.outcome == RoomSearch::Outcome::kSurface ||
-                  s.outcome == RoomSearch::Outcome::kMerged)
-          << "search " << i + 1 << ": " << to_string(s.outcome);
+      EXPECT_TRUE(s.found_surface()) << "search " << i + 1 << ": " << to_string(s.outcome);
     }
     surfaces += s.outcome == RoomSearch::Outcome::kSurface;
     EXPECT_GT(s.rounds, 0u);

@@ -75,7 +75,12 @@ struct RoomSearch {
   DurationNs horizontal_time_ns = 0;
   std::uint32_t inliers = 0;  //!< the best candidate's
   double excess_sigma = 0.0;  //!< its points beyond those beside it (BandCounts), if checked
-  SurfaceKind kind = SurfaceKind::kWall;
+  SurfaceKind kind = SurfaceKind::kWall;  //!< meaningful when it found a surface
+
+  /// A surface came of it (new or merged into one found before).
+  [[nodiscard]] bool found_surface() const {
+    return outcome == Outcome::kSurface || outcome == Outcome::kMerged;
+  }
 };
 
 /// Points of a cloud in three slabs of width 2t along a plane: its inlier band (-t, t), and
