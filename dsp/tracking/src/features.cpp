@@ -13,6 +13,7 @@
 #include <stdexcept>
 
 #include "wallar/core/hash.hpp"
+#include "wallar/dsp/tracking/row_zsad.hpp"
 
 namespace wallar::dsp {
 namespace {
@@ -72,43 +73,6 @@ std::int16_t segment_test(const GrayView& img, int x, int y, int t) {
   if (has_arc9(dark_mask)) score = std::max(score, dark_sum);
   if (score == 0 && (has_arc9(bright_mask) || has_arc9(dark_mask))) score = 1;
   return static_cast<std::int16_t>(std::min(score, 32767));
-}
-
-constexpr int kMaxHalfWindow = 7;
-using Template = std::array<float, (2 * kMaxHalfWindow + 1) * (2 * kMaxHalfWindow + 1)>;
-
-/// The (2hw+1)^2 patch of `img` at (x, y), its mean removed.
-void load_template(const GrayView& img, int x, int y, int hw, Template& out) {
-  int sum = 0;
-  std::size_t k = 0;
-  for (int dy = -hw; dy <= hw; ++dy) {
-    const std::uint8_t* r = img.row(y + dy) + x;
-    for (int dx = -hw; dx <= hw; ++dx, ++k) {
-      out[k] = static_cast<float>(r[dx]);
-      sum += r[dx];
-    }
-  }
-  const float mean = static_cast<float>(sum) / static_cast<float>(k);
-  for (std::size_t i = 0; i < k; ++i) out[i] -= mean;
-}
-
-/// Zero-mean SAD per pixel between a template (mean removed) and the patch of `img` at (x, y).
-float zsad(const Template& tmpl, const GrayView& img, int x, int y, int hw) {
-  int sum = 0;
-  for (int dy = -hw; dy <= hw; ++dy) {
-    const std::uint8_t* r = img.row(y + dy) + x;
-    for (int dx = -hw; dx <= hw; ++dx) sum += r[dx];
-  }
-  const int n = (2 * hw + 1) * (2 * hw + 1);
-  const float mean = static_cast<float>(sum) / static_cast<float>(n);
-  float cost = 0.0f;
-  std::size_t k = 0;
-  for (int dy = -hw; dy <= hw; ++dy) {
-    const std::uint8_t* r = img.row(y + dy) + x;
-    for (int dx = -hw; dx <= hw; ++dx, ++k)
-      cost += std::abs(tmpl[k] - (static_cast<float>(r[dx]) - mean));
-  }
-  return cost / static_cast<float>(n);
 }
 
 /// Vertex offset of the parabola through (-1, a), (0, b), (1, c), clamped to +-0.5.
@@ -290,7 +254,7 @@ float shi_tomasi_score(const GrayView& image, int x, int y, int half) {
 std::optional<float> match_along_row(const GrayView& left, const GrayView& right, float u_px,
                                      float v_px, int d_min, int d_max,
                                      const StereoMatchParams& params) {
-  const int hw = std::clamp(params.half_window, 1, kMaxHalfWindow);
+  const int hw = std::clamp(params.half_window, 1, kRowZsadMaxHalfWindow);
   const int xl = static_cast<int>(std::lround(u_px));
   const int y = static_cast<int>(std::lround(v_px));
   if (y - hw - 1 < 0 || y + hw + 1 >= left.height || xl - hw < 0 || xl + hw >= left.width) {
@@ -299,12 +263,18 @@ std::optional<float> match_along_row(const GrayView& left, const GrayView& right
   d_min = std::max(d_min, 0);
   d_max = std::min({d_max, xl - hw - 1, d_min + 511});
   if (d_max - d_min < 2) return std::nullopt;
+  // Integer costs (n^2 times the zero-mean SAD per pixel) from the SIMD row kernel: the
+  // candidates x = xl - d_max .. xl - d_min of the right row, so cost index d_max - d.
+  const int count = d_max - d_min + 1;
+  const float per_px =
+      1.0f / static_cast<float>((2 * hw + 1) * (2 * hw + 1) * (2 * hw + 1) * (2 * hw + 1));
+  std::array<std::uint32_t, 512> by_x{};
+  row_zsad(left.row(y) + xl, left.stride, right.row(y) + (xl - d_max), right.stride, hw, count,
+           by_x.data());
   std::array<float, 512> cost{};
-  Template tmpl;
-  load_template(left, xl, y, hw, tmpl);
   int best = -1;
   for (int d = d_min; d <= d_max; ++d) {
-    const float c = zsad(tmpl, right, xl - d, y, hw);
+    const float c = static_cast<float>(by_x[static_cast<std::size_t>(d_max - d)]) * per_px;
     cost[static_cast<std::size_t>(d - d_min)] = c;
     if (best < 0 || c < cost[static_cast<std::size_t>(best - d_min)]) best = d;
   }
@@ -316,17 +286,19 @@ std::optional<float> match_along_row(const GrayView& left, const GrayView& right
       second = std::min(second, cost[static_cast<std::size_t>(d - d_min)]);
   }
   if (c0 > params.uniqueness * second) return std::nullopt;
-  // Left-right check: the right patch, searched back along the left row, lands where we began.
+  // Left-right check: the right patch, searched back along the left row (x = xr + d_min ..),
+  // lands where we began.
   const int xr = xl - best;
-  load_template(right, xr, y, hw, tmpl);
+  const int back_count = std::min(d_max, left.width - 1 - hw - xr) - d_min + 1;
+  if (back_count < 1) return std::nullopt;
+  row_zsad(right.row(y) + xr, right.stride, left.row(y) + (xr + d_min), left.stride, hw, back_count,
+           by_x.data());
   int back = -1;
-  float back_cost = 0.0f;
-  for (int d = d_min; d <= d_max; ++d) {
-    if (xr + d + hw >= left.width) break;
-    const float c = zsad(tmpl, left, xr + d, y, hw);
-    if (back < 0 || c < back_cost) {
-      back = d;
-      back_cost = c;
+  std::uint32_t back_cost = 0;
+  for (int i = 0; i < back_count; ++i) {
+    if (back < 0 || by_x[static_cast<std::size_t>(i)] < back_cost) {
+      back = d_min + i;
+      back_cost = by_x[static_cast<std::size_t>(i)];
     }
   }
   if (back < 0 || static_cast<float>(std::abs(back - best)) > params.lr_tolerance_px) {
