@@ -13,6 +13,7 @@
 #include <stdexcept>
 
 #include "wallar/core/hash.hpp"
+#include "wallar/dsp/tracking/patch_cost.hpp"
 #include "wallar/dsp/tracking/row_zsad.hpp"
 
 namespace wallar::dsp {
@@ -346,35 +347,15 @@ std::optional<std::pair<float, float>> search_patch(const GrayView& image, const
   if (!(patch_mad > 0.5f)) return std::nullopt;  // a flat patch matches anything
   std::array<float, (2 * kMaxRadius + 1) * (2 * kMaxRadius + 1)> costs;  // 37 KB of stack
   const int w = x1 - x0 + 1;
+  for (int y = y0; y <= y1; ++y) {
+    patch_costs_row(p.data(), patch_mad, image.row(y - 4) + (x0 - 4), image.stride, w,
+                    costs.data() + static_cast<std::ptrdiff_t>(y - y0) * w);
+  }
   int best_x = x0, best_y = y0;
   float best = std::numeric_limits<float>::infinity();
-  std::array<float, 64> win{};
   for (int y = y0; y <= y1; ++y) {
     for (int x = x0; x <= x1; ++x) {
-      int sum = 0;
-      for (int r = 0; r < 8; ++r) {
-        const std::uint8_t* row = image.row(y - 4 + r) + (x - 4);
-        for (int c = 0; c < 8; ++c) {
-          win[static_cast<std::size_t>(8 * r + c)] = row[c];
-          sum += row[c];
-        }
-      }
-      const float mean = static_cast<float>(sum) / 64.0f;
-      float mad = 0.0f;
-      for (float& v : win) {
-        v -= mean;
-        mad += std::abs(v);
-      }
-      mad /= 64.0f;
-      float c = std::numeric_limits<float>::infinity();
-      // Gains within 1/3..3 of the patch's contrast are an exposure change; beyond, not a match.
-      if (mad > patch_mad * (1.0f / 3.0f) && mad < patch_mad * 3.0f) {
-        const float gain = patch_mad / mad;
-        c = 0.0f;
-        for (std::size_t i = 0; i < 64; ++i) c += std::abs(win[i] * gain - p[i]);
-        c /= 64.0f;
-      }
-      costs[static_cast<std::size_t>((y - y0) * w + (x - x0))] = c;
+      const float c = costs[static_cast<std::size_t>((y - y0) * w + (x - x0))];
       if (c < best) {
         best = c;
         best_x = x;

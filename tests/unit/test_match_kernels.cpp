@@ -1,15 +1,20 @@
 // SPDX-License-Identifier: Apache-2.0
-// The stereo row search's SIMD kernel: exact agreement of every SIMD target with the scalar
-// reference, and the integer cost against the zero-mean SAD's definition in floating point.
+// The tracker's matching kernels (the stereo row search's zero-mean SAD, the patch search's
+// gain-normalised SAD): exact agreement of every SIMD target with the scalar reference, and
+// each cost against its definition computed in double precision.
 #include <hwy/targets.h>
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "wallar/dsp/tracking/patch_cost.hpp"
 #include "wallar/dsp/tracking/row_zsad.hpp"
 
 namespace {
@@ -136,6 +141,140 @@ TEST(RowZsad, EverySimdTargetOfThisMachineAgrees) {
     hwy::SetSupportedTargetsForTest(target);
     SCOPED_TRACE(std::string("on ") + wallar::dsp::row_zsad_target());
     EXPECT_EQ(compare_with_scalar(left, right), 5 * 14);
+    ++checked;
+  }
+  hwy::SetSupportedTargetsForTest(0);  // back to the real CPU
+  EXPECT_GE(checked, 1u) << (only != nullptr ? only : "");
+}
+
+/// An 8x8 patch's deviations from its mean and their mean absolute value, as search_patch
+/// makes them.
+struct PatchDev {
+  std::array<float, 64> dev{};
+  float mad = 0.0f;
+};
+PatchDev patch_at(const TestImage& im, int x, int y) {
+  PatchDev p;
+  float mean = 0.0f;
+  for (int r = 0; r < 8; ++r) {
+    for (int c = 0; c < 8; ++c) mean += *im.at(x + c, y + r);
+  }
+  mean /= 64.0f;
+  for (int r = 0; r < 8; ++r) {
+    for (int c = 0; c < 8; ++c) {
+      p.dev[static_cast<std::size_t>(8 * r + c)] = static_cast<float>(*im.at(x + c, y + r)) - mean;
+      p.mad += std::abs(p.dev[static_cast<std::size_t>(8 * r + c)]);
+    }
+  }
+  p.mad /= 64.0f;
+  return p;
+}
+
+/// The definition in double precision: +inf outside the contrast range.
+double patch_cost_definition(const PatchDev& p, const TestImage& im, int x, int y) {
+  double mean = 0.0;
+  for (int r = 0; r < 8; ++r) {
+    for (int c = 0; c < 8; ++c) mean += *im.at(x + c, y + r);
+  }
+  mean /= 64.0;
+  double mad = 0.0;
+  for (int r = 0; r < 8; ++r) {
+    for (int c = 0; c < 8; ++c) mad += std::abs(*im.at(x + c, y + r) - mean);
+  }
+  mad /= 64.0;
+  if (!(mad > p.mad / 3.0 && mad < p.mad * 3.0)) return std::numeric_limits<double>::infinity();
+  double cost = 0.0;
+  for (int r = 0; r < 8; ++r) {
+    for (int c = 0; c < 8; ++c) {
+      cost += std::abs((*im.at(x + c, y + r) - mean) * (p.mad / mad) -
+                       p.dev[static_cast<std::size_t>(8 * r + c)]);
+    }
+  }
+  return cost / 64.0;
+}
+
+/// A textured image with flat (contrast-free) and low-contrast stretches, so that the contrast
+/// test rejects some windows and passes others.
+TestImage patchy_image(int width, int height, std::uint32_t seed) {
+  TestImage im = random_image(width, height, seed);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      std::uint8_t& v = im.px[static_cast<std::size_t>(y * width + x)];
+      if ((x / 24) % 4 == 1) v = 90;                                       // flat
+      if ((x / 24) % 4 == 2) v = static_cast<std::uint8_t>(100 + v / 12);  // low contrast
+    }
+  }
+  return im;
+}
+
+int compare_patch_costs(const TestImage& patch_image, const TestImage& im) {
+  int cases = 0;
+  std::mt19937 rng(5);
+  for (int count : {1, 2, 3, 7, 8, 9, 15, 16, 17, 31, 33, 64, 97}) {
+    const PatchDev p = patch_at(patch_image, 3 + static_cast<int>(rng() % 100), 3);
+    if (!(p.mad > 0.5f)) continue;
+    const int x0 = static_cast<int>(rng() % static_cast<std::uint32_t>(im.width - count - 8));
+    const int y0 = static_cast<int>(rng() % static_cast<std::uint32_t>(im.height - 8));
+    std::vector<float> simd(static_cast<std::size_t>(count) + 1, -1.0f);
+    std::vector<float> ref(static_cast<std::size_t>(count), -2.0f);
+    wallar::dsp::patch_costs_row(p.dev.data(), p.mad, im.at(x0, y0), im.width, count, simd.data());
+    wallar::dsp::patch_costs_row_scalar(p.dev.data(), p.mad, im.at(x0, y0), im.width, count,
+                                        ref.data());
+    for (int j = 0; j < count; ++j) {
+      EXPECT_EQ(std::memcmp(&simd[static_cast<std::size_t>(j)], &ref[static_cast<std::size_t>(j)],
+                            sizeof(float)),
+                0)
+          << "count " << count << " j " << j << ": " << simd[static_cast<std::size_t>(j)] << " vs "
+          << ref[static_cast<std::size_t>(j)];
+    }
+    EXPECT_EQ(simd[static_cast<std::size_t>(count)], -1.0f) << "wrote past the end";
+    ++cases;
+  }
+  return cases;
+}
+
+TEST(PatchCost, TheCostIsTheGainNormalisedZeroMeanSad) {
+  const TestImage a = patchy_image(240, 24, 21), b = patchy_image(240, 24, 22);
+  const PatchDev p = patch_at(a, 5, 4);
+  ASSERT_GT(p.mad, 0.5f);
+  const int count = 240 - 8;
+  std::vector<float> cost(static_cast<std::size_t>(count));
+  wallar::dsp::patch_costs_row(p.dev.data(), p.mad, b.at(0, 8), b.width, count, cost.data());
+  int rejected = 0, scored = 0;
+  for (int j = 0; j < count; ++j) {
+    const double want = patch_cost_definition(p, b, j, 8);
+    if (std::isinf(want)) {
+      EXPECT_TRUE(std::isinf(cost[static_cast<std::size_t>(j)])) << j;
+      ++rejected;
+    } else {
+      EXPECT_NEAR(cost[static_cast<std::size_t>(j)], want, 1e-3) << j;
+      ++scored;
+    }
+  }
+  EXPECT_GT(rejected, 40);  // the flat and the low-contrast stretches
+  EXPECT_GT(scored, 40);
+  // A window that is the patch at twice the contrast and another brightness (an exposure
+  // change: doubled = 2 (changed - 60) exactly) costs nothing.
+  TestImage changed = a;
+  for (std::uint8_t& v : changed.px) v = static_cast<std::uint8_t>(60 + v / 2);
+  float c = -1.0f;
+  const PatchDev even = patch_at(changed, 4, 4);
+  TestImage doubled = changed;
+  for (std::uint8_t& v : doubled.px) v = static_cast<std::uint8_t>((v - 60) * 2);
+  wallar::dsp::patch_costs_row(even.dev.data(), even.mad, doubled.at(4, 4), doubled.width, 1, &c);
+  EXPECT_NEAR(c, 0.0f, 1e-4f);
+}
+
+TEST(PatchCost, EverySimdTargetOfThisMachineAgrees) {
+  const TestImage a = patchy_image(300, 24, 31), b = patchy_image(300, 24, 32);
+  const char* only = std::getenv("WALLAR_SIMD_TARGETS");
+  std::size_t checked = 0;
+  for (std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    if (only != nullptr && std::string(hwy::TargetName(target)).find(only) == std::string::npos)
+      continue;
+    hwy::SetSupportedTargetsForTest(target);
+    SCOPED_TRACE(std::string("on ") + hwy::TargetName(target));
+    EXPECT_GE(compare_patch_costs(a, b), 10);
     ++checked;
   }
   hwy::SetSupportedTargetsForTest(0);  // back to the real CPU
