@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
-// The tracker's matching kernels (the stereo row search's zero-mean SAD, the patch search's
-// gain-normalised SAD): exact agreement of every SIMD target with the scalar reference, and
-// each cost against its definition computed in double precision.
+// The tracker's image kernels (the rectification's remap, the stereo row search's zero-mean
+// SAD, the patch search's gain-normalised SAD): exact agreement of every SIMD target with the
+// scalar reference, and each cost against its definition computed in double precision.
 #include <hwy/targets.h>
 
 #include <array>
@@ -12,8 +12,10 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "wallar/dsp/tracking/gray_image.hpp"
 #include "wallar/dsp/tracking/patch_cost.hpp"
 #include "wallar/dsp/tracking/row_zsad.hpp"
 
@@ -279,6 +281,92 @@ TEST(PatchCost, EverySimdTargetOfThisMachineAgrees) {
   }
   hwy::SetSupportedTargetsForTest(0);  // back to the real CPU
   EXPECT_GE(checked, 1u) << (only != nullptr ? only : "");
+}
+
+/// A lens-like map: the destination sampled from a rotated, scaled, radially distorted source,
+/// reaching past every border (black taps) and into the bottom-right corner.
+wallar::dsp::RemapTable distorted_table(int w, int h, int sw, int sh) {
+  std::vector<float> mx(static_cast<std::size_t>(w * h)), my(mx.size());
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const double u = (x - 0.5 * w) / w, v = (y - 0.5 * h) / w;
+      const double r2 = u * u + v * v, k = 1.0 + 0.3 * r2;
+      const double c = std::cos(0.05), s = std::sin(0.05);
+      mx[static_cast<std::size_t>(y * w + x)] =
+          static_cast<float>(0.5 * sw + 1.08 * sw * k * (c * u - s * v) + 0.37);
+      my[static_cast<std::size_t>(y * w + x)] =
+          static_cast<float>(0.5 * sh + 1.08 * sw * k * (s * u + c * v) - 0.21);
+    }
+  }
+  return wallar::dsp::RemapTable(w, h, mx, my, sw, sh);
+}
+
+int compare_remaps(const TestImage& src, int stride_pad) {
+  TestImage padded{src.width + stride_pad, src.height,
+                   std::vector<std::uint8_t>(
+                       static_cast<std::size_t>((src.width + stride_pad) * src.height), 0x5a)};
+  for (int y = 0; y < src.height; ++y) {
+    std::memcpy(padded.px.data() + static_cast<std::ptrdiff_t>(y) * padded.width, src.at(0, y),
+                static_cast<std::size_t>(src.width));
+  }
+  const wallar::dsp::GrayView view{padded.px.data(), src.width, src.height, padded.width};
+  int cases = 0;
+  for (const auto& [w, h] : {std::pair{src.width, src.height}, std::pair{101, 37}}) {
+    const wallar::dsp::RemapTable table = distorted_table(w, h, src.width, src.height);
+    EXPECT_FALSE(table.identity());
+    std::vector<std::uint8_t> simd(static_cast<std::size_t>(w * h) + 1, 0xee), ref(simd);
+    table.apply(view, simd.data());
+    table.apply_scalar(view, ref.data());
+    EXPECT_EQ(simd, ref) << w << "x" << h << ", row pitch +" << stride_pad;
+    int black = 0;
+    for (int i = 0; i < w * h; ++i) black += simd[static_cast<std::size_t>(i)] == 0 ? 1 : 0;
+    EXPECT_GT(black, w) << "the map reaches past the borders";
+    ++cases;
+  }
+  return cases;
+}
+
+TEST(RemapKernel, EverySimdTargetOfThisMachineAgrees) {
+  const TestImage src = random_image(320, 96, 41);
+  const char* only = std::getenv("WALLAR_SIMD_TARGETS");
+  std::size_t checked = 0;
+  for (std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    if (only != nullptr && std::string(hwy::TargetName(target)).find(only) == std::string::npos)
+      continue;
+    hwy::SetSupportedTargetsForTest(target);
+    SCOPED_TRACE(std::string("on ") + hwy::TargetName(target));
+    EXPECT_EQ(compare_remaps(src, 0), 2);   // packed rows: the last bytes are the buffer's end
+    EXPECT_EQ(compare_remaps(src, 13), 2);  // a row pitch wider than the image
+    ++checked;
+  }
+  hwy::SetSupportedTargetsForTest(0);  // back to the real CPU
+  EXPECT_GE(checked, 1u) << (only != nullptr ? only : "");
+}
+
+TEST(RemapKernel, AnIdentityTableCopiesWhatTheTapsWouldGive) {
+  const int w = 200, h = 50;
+  const TestImage src = random_image(w, h, 43);
+  std::vector<float> mx(static_cast<std::size_t>(w * h)), my(mx.size());
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      // What initUndistortRectifyMap gives for a rectified rig: whole pixels, within rounding.
+      mx[static_cast<std::size_t>(y * w + x)] =
+          static_cast<float>(x) - ((x + y) % 3 == 0 ? 1e-5f : 0.0f);
+      my[static_cast<std::size_t>(y * w + x)] =
+          static_cast<float>(y) + ((x * y) % 5 == 0 ? 1e-5f : 0.0f);
+    }
+  }
+  const wallar::dsp::RemapTable table(w, h, mx, my, w, h);
+  EXPECT_TRUE(table.identity());
+  const wallar::dsp::GrayView view{src.px.data(), w, h, w};
+  std::vector<std::uint8_t> fast(static_cast<std::size_t>(w * h)), ref(fast.size());
+  table.apply(view, fast.data());
+  table.apply_scalar(view, ref.data());
+  EXPECT_EQ(fast, ref);
+  EXPECT_EQ(fast[static_cast<std::size_t>(10 * w + 17)], *src.at(17, 10));
+  // Half a pixel off is not the identity.
+  for (float& x : mx) x += 0.5f;
+  EXPECT_FALSE(wallar::dsp::RemapTable(w, h, mx, my, w, h).identity());
 }
 
 }  // namespace

@@ -8,6 +8,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "wallar/dsp/tracking/remap_kernel.hpp"
+
 namespace wallar::dsp {
 
 Pyramid::Pyramid(int width, int height, int levels) {
@@ -50,51 +52,98 @@ RemapTable::RemapTable(int width, int height, std::span<const float> map_x,
   if (map_x.size() != n || map_y.size() != n) {
     throw std::invalid_argument("remap table: the maps are not width x height");
   }
-  if (source_width > 32767 || source_height > 32767) {
-    throw std::invalid_argument("remap table: the source is larger than 32767 pixels");
+  if (source_width > 32767 || source_height > 32767 || source_width < 4 || source_height < 2) {
+    throw std::invalid_argument("remap table: the source is not 4x2 to 32767x32767 pixels");
   }
-  taps_.resize(n);
+  pos_.assign(n, 0);
+  weights_.assign(n, 0);
+  chunk_scalar_.assign((n + kRemapChunk - 1) / kRemapChunk, 0);
+  identity_ = width == source_width && height == source_height;
+  black_.clear();
   for (std::size_t i = 0; i < n; ++i) {
+    const int col = static_cast<int>(i % static_cast<std::size_t>(width));
+    const int row = static_cast<int>(i / static_cast<std::size_t>(width));
     const float x = map_x[i], y = map_y[i];
     if (!(x >= 0.0f && y >= 0.0f && x < static_cast<float>(source_width - 1) &&
           y < static_cast<float>(source_height - 1))) {
+      // Black (on the identity: the last column and row, or a border pixel a rounding error
+      // outside).
+      identity_ = identity_ && std::abs(x - static_cast<float>(col)) < 1.0f / 256 &&
+                  std::abs(y - static_cast<float>(row)) < 1.0f / 256;
+      if (identity_) black_.push_back(static_cast<std::uint32_t>(i));
       continue;
     }
     const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
     // Weights in 1/128 that sum to exactly 128 (the largest absorbs the rounding).
     const float ax = x - static_cast<float>(x0), ay = y - static_cast<float>(y0);
     const std::array<float, 4> wf{(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay};
-    Tap& t = taps_[i];
-    t.x = static_cast<std::int16_t>(x0);
-    t.y = static_cast<std::int16_t>(y0);
+    std::array<int, 4> w{};
     int sum = 0;
     std::size_t largest = 0;
     for (std::size_t k = 0; k < 4; ++k) {
-      t.w[k] = static_cast<std::uint8_t>(std::lround(wf[k] * 128.0f));
-      sum += t.w[k];
+      w[k] = static_cast<int>(std::lround(wf[k] * 128.0f));
+      sum += w[k];
       if (wf[k] > wf[largest]) largest = k;
     }
-    t.w[largest] = static_cast<std::uint8_t>(t.w[largest] + (128 - sum));
+    w[largest] += 128 - sum;
+    pos_[i] = (static_cast<std::uint32_t>(y0) << 16) | static_cast<std::uint32_t>(x0);
+    weights_[i] = static_cast<std::uint32_t>(w[0]) | static_cast<std::uint32_t>(w[1]) << 8 |
+                  static_cast<std::uint32_t>(w[2]) << 16 | static_cast<std::uint32_t>(w[3]) << 24;
+    // The identity: one weight of 128, on the pixel (col, row) itself.
+    const std::size_t whole =
+        static_cast<std::size_t>(std::find(w.begin(), w.end(), 128) - w.begin());
+    identity_ = identity_ && whole < 4 && x0 + static_cast<int>(whole & 1) == col &&
+                y0 + static_cast<int>(whole >> 1) == row;
+    // The kernel reads bytes x0 .. x0 + 3 of rows y0 and y0 + 1: past the buffer's end for the
+    // last row's last three pixels when rows are packed.
+    if (y0 == source_height - 2 && x0 > source_width - 4) chunk_scalar_[i / kRemapChunk] = 1;
+  }
+  if (!identity_) black_ = {};
+}
+
+void RemapTable::check(const GrayView& source) const {
+  if (source.width != source_width_ || source.height != source_height_) {
+    throw std::invalid_argument("remap: the image size does not match the calibration");
   }
 }
 
 void RemapTable::apply(const GrayView& source, std::uint8_t* out) const {
-  if (source.width != source_width_ || source.height != source_height_) {
-    throw std::invalid_argument("remap: the image size does not match the calibration");
-  }
-  const std::uint8_t* src = source.data;
-  const std::ptrdiff_t stride = source.stride;
-  const std::size_t n = taps_.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    const Tap t = taps_[i];
-    if (t.x < 0) {
-      out[i] = 0;
-      continue;
+  check(source);
+  if (identity_) {
+    // What the taps give: each pixel itself, those on the last column and row without a tap
+    // black.
+    for (int y = 0; y < height_; ++y) {
+      std::memcpy(out + static_cast<std::ptrdiff_t>(y) * width_, source.row(y),
+                  static_cast<std::size_t>(width_));
     }
-    const std::uint8_t* p = src + t.y * stride + t.x;
-    out[i] = static_cast<std::uint8_t>(
-        (p[0] * t.w[0] + p[1] * t.w[1] + p[stride] * t.w[2] + p[stride + 1] * t.w[3] + 64) >> 7);
+    for (const std::uint32_t i : black_) out[i] = 0;
+    return;
   }
+  const std::size_t n = pos_.size(), full = n / kRemapChunk;
+  std::size_t c = 0;
+  while (c < full) {
+    std::size_t e = c;
+    while (e < full && chunk_scalar_[e] == 0) ++e;
+    if (e > c) {
+      const std::size_t at = c * kRemapChunk;
+      remap_taps(source.data, source.stride, pos_.data() + at, weights_.data() + at,
+                 (e - c) * kRemapChunk, out + at);
+      c = e;
+    } else {
+      const std::size_t at = c * kRemapChunk;
+      remap_taps_scalar(source.data, source.stride, pos_.data() + at, weights_.data() + at,
+                        kRemapChunk, out + at);
+      ++c;
+    }
+  }
+  const std::size_t at = full * kRemapChunk;
+  remap_taps_scalar(source.data, source.stride, pos_.data() + at, weights_.data() + at, n - at,
+                    out + at);
+}
+
+void RemapTable::apply_scalar(const GrayView& source, std::uint8_t* out) const {
+  check(source);
+  remap_taps_scalar(source.data, source.stride, pos_.data(), weights_.data(), pos_.size(), out);
 }
 
 }  // namespace wallar::dsp

@@ -75,7 +75,9 @@ class Pyramid {
 
 /// A remap table (bilinear, fixed point) computed once from float maps such as OpenCV's
 /// initUndistortRectifyMap; apply() writes the remapped image with no allocation. Pixels whose
-/// source falls outside the input are black.
+/// source falls outside the input (or on its last row or column) are black. A table that is the
+/// identity (an already rectified rig) copies rows; any other runs the SIMD gather kernel
+/// (remap_kernel.hpp), with the same bytes as the scalar reference.
 class RemapTable {
  public:
   RemapTable() = default;
@@ -83,17 +85,24 @@ class RemapTable {
   RemapTable(int width, int height, std::span<const float> map_x, std::span<const float> map_y,
              int source_width, int source_height);
   void apply(const GrayView& source, std::uint8_t* out) const;
+  /// The same through the scalar reference only (tests and benchmarks compare the two).
+  void apply_scalar(const GrayView& source, std::uint8_t* out) const;
   [[nodiscard]] int width() const { return width_; }
   [[nodiscard]] int height() const { return height_; }
+  /// True when every pixel is its own source (within 1/256 px): apply() copies.
+  [[nodiscard]] bool identity() const { return identity_; }
 
  private:
-  /// The top-left source tap (x = -1: outside the source) and the four bilinear weights in
-  /// 1/128 (top-left, top-right, bottom-left, bottom-right), summing to 128.
-  struct Tap {
-    std::int16_t x = -1, y = 0;
-    std::array<std::uint8_t, 4> w{};
-  };
-  std::vector<Tap> taps_;
+  void check(const GrayView& source) const;
+  /// Per destination pixel: (y << 16) | x of the top-left source tap, and the four bilinear
+  /// weights in 1/128 (top-left, top-right, bottom-left, bottom-right; summing to 128) packed
+  /// in bytes. Outside: pos 0, weights 0.
+  std::vector<std::uint32_t> pos_, weights_;
+  /// Per kRemapChunk taps: 1 when one of them reads past the source's last bytes four at a
+  /// time (its bottom-right corner), so the chunk takes the scalar path.
+  std::vector<std::uint8_t> chunk_scalar_;
+  bool identity_ = false;
+  std::vector<std::uint32_t> black_;  //!< the identity's pixels without a tap
   int width_ = 0, height_ = 0, source_width_ = 0, source_height_ = 0;
 };
 
