@@ -12,6 +12,25 @@ namespace wallar::dsp {
 namespace {
 constexpr int kMaxHalf = 10;
 constexpr std::size_t kMaxWindow = (2 * kMaxHalf + 1) * (2 * kMaxHalf + 1);
+constexpr std::size_t kMaxGrid = (2 * kMaxHalf + 3) * (2 * kMaxHalf + 3);
+
+/// Bilinear samples of `img` at (x + i, y + j), i in [0, side), j in [0, side), row-major. Every
+/// sample of a whole-pixel grid shares one pair of fractional weights, so they are found once
+/// instead of per sample. The caller keeps the grid and its right/lower neighbours inside.
+void sample_grid(const GrayView& img, float x, float y, int side, float* out) {
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);  // x, y >= 0
+  const float ax = x - static_cast<float>(x0), ay = y - static_cast<float>(y0);
+  const float bx = 1.0f - ax, by = 1.0f - ay;
+  for (int j = 0; j < side; ++j) {
+    const std::uint8_t* r0 = img.row(y0 + j) + x0;
+    const std::uint8_t* r1 = r0 + img.stride;
+    float* o = out + static_cast<std::ptrdiff_t>(j) * side;
+    for (int i = 0; i < side; ++i) {
+      o[i] = by * (bx * static_cast<float>(r0[i]) + ax * static_cast<float>(r0[i + 1])) +
+             ay * (bx * static_cast<float>(r1[i]) + ax * static_cast<float>(r1[i + 1]));
+    }
+  }
+}
 
 /// Full-resolution pixel coordinate to level `level` (2x2-mean pyramids: pixel centres shift).
 float to_level(float x, int level) { return (x + 0.5f) / static_cast<float>(1 << level) - 0.5f; }
@@ -49,6 +68,7 @@ bool klt_track(const Pyramid& prev, const Pyramid& cur, float u0, float v0, floa
   const int hw = params.half_window > kMaxHalf ? kMaxHalf : params.half_window;
   const float border = static_cast<float>(hw + 2);
   std::array<float, kMaxWindow> tmpl, gx, gy;
+  std::array<float, kMaxGrid> grid;
   float mean_abs = 0.0f;
   // The frames' brightness relation (an exposure or gain step), held for every window.
   const float gain = std::clamp(brightness.gain, 1.0f / 3.0f, 3.0f), bias = brightness.bias;
@@ -60,15 +80,19 @@ bool klt_track(const Pyramid& prev, const Pyramid& cur, float u0, float v0, floa
       if (level == 0) return false;
       continue;  // too close to the border at this scale: refine on the finer levels only
     }
-    // Template and its gradients (central differences) from the previous image.
+    // Template and its gradients (central differences) from the previous image: one grid a
+    // pixel wider on each side than the window.
+    const int side = 2 * hw + 3;
+    sample_grid(P, px - static_cast<float>(hw + 1), py - static_cast<float>(hw + 1), side,
+                grid.data());
     float a = 0.0f, b = 0.0f, c = 0.0f;
     std::size_t k = 0;
     for (int dy = -hw; dy <= hw; ++dy) {
+      const float* g = grid.data() + static_cast<std::ptrdiff_t>(dy + hw + 1) * side + hw + 1;
       for (int dx = -hw; dx <= hw; ++dx, ++k) {
-        const float x = px + static_cast<float>(dx), y = py + static_cast<float>(dy);
-        tmpl[k] = P.sample(x, y);
-        gx[k] = 0.5f * (P.sample(x + 1.0f, y) - P.sample(x - 1.0f, y));
-        gy[k] = 0.5f * (P.sample(x, y + 1.0f) - P.sample(x, y - 1.0f));
+        tmpl[k] = g[dx];
+        gx[k] = 0.5f * (g[dx + 1] - g[dx - 1]);
+        gy[k] = 0.5f * (g[dx + side] - g[dx - side]);
         a += gx[k] * gx[k];
         b += gx[k] * gy[k];
         c += gy[k] * gy[k];
@@ -83,15 +107,13 @@ bool klt_track(const Pyramid& prev, const Pyramid& cur, float u0, float v0, floa
       if (!C.inside(qx, qy, border)) return false;
       float ex = 0.0f, ey = 0.0f;
       mean_abs = 0.0f;
-      k = 0;
-      for (int dy = -hw; dy <= hw; ++dy) {
-        for (int dx = -hw; dx <= hw; ++dx, ++k) {
-          const float e = C.sample(qx + static_cast<float>(dx), qy + static_cast<float>(dy)) -
-                          (gain * tmpl[k] + bias);
-          ex += e * gx[k];
-          ey += e * gy[k];
-          mean_abs += std::abs(e);
-        }
+      sample_grid(C, qx - static_cast<float>(hw), qy - static_cast<float>(hw), 2 * hw + 1,
+                  grid.data());
+      for (std::size_t i = 0; i < k; ++i) {
+        const float e = grid[i] - (gain * tmpl[i] + bias);
+        ex += e * gx[i];
+        ey += e * gy[i];
+        mean_abs += std::abs(e);
       }
       mean_abs /= n * gain;  // in the template's grey levels
       // The template's gradients scale with the gain too.
