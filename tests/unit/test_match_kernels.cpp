@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
-// The tracker's image kernels (the rectification's remap, the stereo row search's zero-mean
-// SAD, the patch search's gain-normalised SAD): exact agreement of every SIMD target with the
-// scalar reference, and each cost against its definition computed in double precision.
+// The tracker's image kernels (the rectification's remap, the corner detector's pre-filter, the
+// stereo row search's zero-mean SAD, the patch search's gain-normalised SAD): exact agreement of
+// every SIMD target with the scalar reference, and each cost against its definition computed in
+// double precision.
 #include <hwy/targets.h>
 
 #include <array>
@@ -18,6 +19,7 @@
 #include "wallar/dsp/tracking/gray_image.hpp"
 #include "wallar/dsp/tracking/patch_cost.hpp"
 #include "wallar/dsp/tracking/row_zsad.hpp"
+#include "wallar/dsp/tracking/segment_prefilter.hpp"
 
 namespace {
 
@@ -367,6 +369,98 @@ TEST(RemapKernel, AnIdentityTableCopiesWhatTheTapsWouldGive) {
   // Half a pixel off is not the identity.
   for (float& x : mx) x += 0.5f;
   EXPECT_FALSE(wallar::dsp::RemapTable(w, h, mx, my, w, h).identity());
+}
+
+/// True when the radius-3 circle around (x, y) has 9 contiguous pixels all brighter than c + t
+/// or all darker than c - t (the segment test's corner condition), from its definition.
+bool has_segment(const TestImage& im, int x, int y, int t) {
+  static constexpr int kRing[16][2] = {{0, -3}, {1, -3},  {2, -2},  {3, -1}, {3, 0},  {3, 1},
+                                       {2, 2},  {1, 3},   {0, 3},   {-1, 3}, {-2, 2}, {-3, 1},
+                                       {-3, 0}, {-3, -1}, {-2, -2}, {-1, -3}};
+  const int c = *im.at(x, y);
+  for (int sign : {1, -1}) {
+    for (int start = 0; start < 16; ++start) {
+      bool all = true;
+      for (int k = 0; k < 9 && all; ++k) {
+        const int* o = kRing[(start + k) % 16];
+        const int v = *im.at(x + o[0], y + o[1]);
+        all = sign > 0 ? v > c + t : v < c - t;
+      }
+      if (all) return true;
+    }
+  }
+  return false;
+}
+
+/// Bright and dark blobs on a mid-grey ground with noise: corners of both kinds, flat stretches,
+/// and pixels near 0 and 255 where c + t and c - t leave the byte range.
+TestImage blob_image(int width, int height, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  TestImage im{width, height, std::vector<std::uint8_t>(static_cast<std::size_t>(width * height))};
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      int v = 128 + static_cast<int>(rng() % 9) - 4;
+      if ((x / 5 + y / 4) % 7 == 0) v = 250 + static_cast<int>(rng() % 6);
+      if ((x / 6 + 2 * (y / 5)) % 9 == 0) v = static_cast<int>(rng() % 6);
+      im.px[static_cast<std::size_t>(y * width + x)] = static_cast<std::uint8_t>(v);
+    }
+  }
+  return im;
+}
+
+int compare_prefilter(const TestImage& im) {
+  int cases = 0;
+  for (int t : {0, 1, 7, 20, 60, 127, 200, 255}) {
+    for (int y = 3; y < im.height - 3; ++y) {
+      const int count = im.width - 6;
+      std::vector<std::uint8_t> simd(static_cast<std::size_t>(count) + 1, 0x77), ref(simd);
+      wallar::dsp::segment_candidates(im.at(3, y), im.width, count, t, simd.data());
+      wallar::dsp::segment_candidates_scalar(im.at(3, y), im.width, count, t, ref.data());
+      EXPECT_EQ(simd, ref) << "t " << t << " row " << y;
+    }
+    ++cases;
+  }
+  return cases;
+}
+
+TEST(SegmentPrefilter, NoPixelItRejectsIsACorner) {
+  const TestImage im = blob_image(203, 61, 51);
+  int candidates = 0, corners = 0, checked = 0;
+  for (int t : {5, 20, 60}) {
+    for (int y = 3; y < im.height - 3; ++y) {
+      const int count = im.width - 6;
+      std::vector<std::uint8_t> flags(static_cast<std::size_t>(count));
+      wallar::dsp::segment_candidates(im.at(3, y), im.width, count, t, flags.data());
+      for (int i = 0; i < count; ++i) {
+        const bool corner = has_segment(im, 3 + i, y, t);
+        if (corner) {
+          EXPECT_EQ(flags[static_cast<std::size_t>(i)], 1) << 3 + i << "," << y;
+        }
+        corners += corner ? 1 : 0;
+        candidates += flags[static_cast<std::size_t>(i)];
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(corners, 100);
+  EXPECT_LT(candidates, checked / 2) << "the pre-filter must reject most of the image";
+}
+
+TEST(SegmentPrefilter, EverySimdTargetOfThisMachineAgrees) {
+  const TestImage a = blob_image(150, 30, 52), b = random_image(150, 30, 53);
+  const char* only = std::getenv("WALLAR_SIMD_TARGETS");
+  std::size_t checked = 0;
+  for (std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    if (only != nullptr && std::string(hwy::TargetName(target)).find(only) == std::string::npos)
+      continue;
+    hwy::SetSupportedTargetsForTest(target);
+    SCOPED_TRACE(std::string("on ") + hwy::TargetName(target));
+    EXPECT_EQ(compare_prefilter(a), 8);
+    EXPECT_EQ(compare_prefilter(b), 8);
+    ++checked;
+  }
+  hwy::SetSupportedTargetsForTest(0);  // back to the real CPU
+  EXPECT_GE(checked, 1u) << (only != nullptr ? only : "");
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include "wallar/core/hash.hpp"
 #include "wallar/dsp/tracking/patch_cost.hpp"
 #include "wallar/dsp/tracking/row_zsad.hpp"
+#include "wallar/dsp/tracking/segment_prefilter.hpp"
 
 namespace wallar::dsp {
 namespace {
@@ -93,31 +94,36 @@ float refine_disparity(const GrayView& left, const GrayView& right, float u_px, 
   (void)hw;
   // Bilinear samples read the row below theirs: the window's last row must not be the image's.
   if (y - kHw < 0 || y + kHw + 1 >= left.height || y + kHw + 1 >= right.height) return d0;
-  std::array<float, (2 * kHw + 1) * (2 * kHw + 1)> tmpl{};
-  float mean_l = 0.0f;
-  std::size_t k = 0;
-  for (int dy = -kHw; dy <= kHw; ++dy) {
-    for (int dx = -kHw; dx <= kHw; ++dx, ++k) {
-      const float x = u_px + static_cast<float>(dx);
-      if (x < 1.0f || x >= static_cast<float>(left.width) - 2.0f) return d0;
-      tmpl[k] = left.sample(x, static_cast<float>(y + dy));
-      mean_l += tmpl[k];
-    }
+  constexpr int kSide = 2 * kHw + 1;
+  {
+    const float first = u_px - static_cast<float>(kHw), last = u_px + static_cast<float>(kHw);
+    if (first < 1.0f || last >= static_cast<float>(left.width) - 2.0f) return d0;
   }
-  const float n = static_cast<float>(k);
+  std::array<float, kSide * kSide> tmpl{};
+  left.sample_grid(u_px - static_cast<float>(kHw), static_cast<float>(y - kHw), kSide, kSide,
+                   tmpl.data());
+  float mean_l = 0.0f;
+  for (const float v : tmpl) mean_l += v;
+  const float n = static_cast<float>(tmpl.size());
   mean_l /= n;
   float d = d0;
+  // The right window with a column more on each side for the central differences.
+  std::array<float, (kSide + 2) * kSide> grid{};
   for (int it = 0; it < 6; ++it) {
     float mean_r = 0.0f, sum_g = 0.0f, sum_gg = 0.0f, sum_ge = 0.0f, sum_e = 0.0f;
-    std::array<float, (2 * kHw + 1) * (2 * kHw + 1)> rv{}, gv{};
-    k = 0;
-    for (int dy = -kHw; dy <= kHw; ++dy) {
-      for (int dx = -kHw; dx <= kHw; ++dx, ++k) {
-        const float x = u_px - d + static_cast<float>(dx);
-        if (x < 2.0f || x >= static_cast<float>(right.width) - 3.0f) return d0;
-        const float yy = static_cast<float>(y + dy);
-        rv[k] = right.sample(x, yy);
-        gv[k] = 0.5f * (right.sample(x + 1.0f, yy) - right.sample(x - 1.0f, yy));
+    std::array<float, kSide * kSide> rv{}, gv{};
+    const float first = u_px - d - static_cast<float>(kHw);
+    if (first < 2.0f ||
+        first + static_cast<float>(2 * kHw) >= static_cast<float>(right.width) - 3.0f) {
+      return d0;
+    }
+    right.sample_grid(first - 1.0f, static_cast<float>(y - kHw), kSide + 2, kSide, grid.data());
+    std::size_t k = 0;
+    for (int r = 0; r < kSide; ++r) {
+      const float* g = grid.data() + static_cast<std::ptrdiff_t>(r) * (kSide + 2) + 1;
+      for (int c = 0; c < kSide; ++c, ++k) {
+        rv[k] = g[c];
+        gv[k] = 0.5f * (g[c + 1] - g[c - 1]);
         mean_r += rv[k];
       }
     }
@@ -155,6 +161,7 @@ CornerDetector::CornerDetector(int width, int height, const DetectorParams& para
     throw std::invalid_argument("corner detector: image too small or bad bucket settings");
   }
   score_.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), 0);
+  candidate_.assign(static_cast<std::size_t>(width), 0);
   bucket_best_.resize(static_cast<std::size_t>(cols_ * rows_ * params.per_bucket));
   bucket_n_.resize(static_cast<std::size_t>(cols_ * rows_));
 }
@@ -176,9 +183,16 @@ void CornerDetector::detect(const GrayView& image, std::span<const std::uint16_t
   out.clear();
   const int b = params_.border_px;
   std::fill(score_.begin(), score_.end(), std::int16_t{0});
+  // The compass pre-filter for a whole row in SIMD, the full segment test on its candidates.
   for (int y = b; y < height_ - b; ++y) {
     std::int16_t* srow = score_.data() + std::ptrdiff_t{y} * width_;
-    for (int x = b; x < width_ - b; ++x) srow[x] = segment_test(image, x, y, threshold_);
+    segment_candidates(image.row(y) + b, image.stride, width_ - 2 * b, threshold_,
+                       candidate_.data());
+    for (int x = b; x < width_ - b; ++x) {
+      if (candidate_[static_cast<std::size_t>(x - b)] != 0) {
+        srow[x] = segment_test(image, x, y, threshold_);
+      }
+    }
   }
   std::fill(bucket_n_.begin(), bucket_n_.end(), std::uint8_t{0});
   int raw = 0;

@@ -14,24 +14,6 @@ constexpr int kMaxHalf = 10;
 constexpr std::size_t kMaxWindow = (2 * kMaxHalf + 1) * (2 * kMaxHalf + 1);
 constexpr std::size_t kMaxGrid = (2 * kMaxHalf + 3) * (2 * kMaxHalf + 3);
 
-/// Bilinear samples of `img` at (x + i, y + j), i in [0, side), j in [0, side), row-major. Every
-/// sample of a whole-pixel grid shares one pair of fractional weights, so they are found once
-/// instead of per sample. The caller keeps the grid and its right/lower neighbours inside.
-void sample_grid(const GrayView& img, float x, float y, int side, float* out) {
-  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);  // x, y >= 0
-  const float ax = x - static_cast<float>(x0), ay = y - static_cast<float>(y0);
-  const float bx = 1.0f - ax, by = 1.0f - ay;
-  for (int j = 0; j < side; ++j) {
-    const std::uint8_t* r0 = img.row(y0 + j) + x0;
-    const std::uint8_t* r1 = r0 + img.stride;
-    float* o = out + static_cast<std::ptrdiff_t>(j) * side;
-    for (int i = 0; i < side; ++i) {
-      o[i] = by * (bx * static_cast<float>(r0[i]) + ax * static_cast<float>(r0[i + 1])) +
-             ay * (bx * static_cast<float>(r1[i]) + ax * static_cast<float>(r1[i + 1]));
-    }
-  }
-}
-
 /// Full-resolution pixel coordinate to level `level` (2x2-mean pyramids: pixel centres shift).
 float to_level(float x, int level) { return (x + 0.5f) / static_cast<float>(1 << level) - 0.5f; }
 float from_level(float x, int level) { return (x + 0.5f) * static_cast<float>(1 << level) - 0.5f; }
@@ -83,8 +65,8 @@ bool klt_track(const Pyramid& prev, const Pyramid& cur, float u0, float v0, floa
     // Template and its gradients (central differences) from the previous image: one grid a
     // pixel wider on each side than the window.
     const int side = 2 * hw + 3;
-    sample_grid(P, px - static_cast<float>(hw + 1), py - static_cast<float>(hw + 1), side,
-                grid.data());
+    P.sample_grid(px - static_cast<float>(hw + 1), py - static_cast<float>(hw + 1), side, side,
+                  grid.data());
     float a = 0.0f, b = 0.0f, c = 0.0f;
     std::size_t k = 0;
     for (int dy = -hw; dy <= hw; ++dy) {
@@ -107,8 +89,8 @@ bool klt_track(const Pyramid& prev, const Pyramid& cur, float u0, float v0, floa
       if (!C.inside(qx, qy, border)) return false;
       float ex = 0.0f, ey = 0.0f;
       mean_abs = 0.0f;
-      sample_grid(C, qx - static_cast<float>(hw), qy - static_cast<float>(hw), 2 * hw + 1,
-                  grid.data());
+      C.sample_grid(qx - static_cast<float>(hw), qy - static_cast<float>(hw), 2 * hw + 1,
+                    2 * hw + 1, grid.data());
       for (std::size_t i = 0; i < k; ++i) {
         const float e = grid[i] - (gain * tmpl[i] + bias);
         ex += e * gx[i];

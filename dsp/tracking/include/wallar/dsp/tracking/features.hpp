@@ -59,9 +59,10 @@ class CornerDetector {
   int width_ = 0, height_ = 0, cols_ = 0, rows_ = 0;
   int threshold_ = 20;
   int last_raw_ = 0;
-  std::vector<std::int16_t> score_;     //!< segment-test score per pixel, 0 = no corner
-  std::vector<Corner> bucket_best_;     //!< per_bucket slots per bucket, sorted by score
-  std::vector<std::uint8_t> bucket_n_;  //!< filled slots per bucket
+  std::vector<std::int16_t> score_;      //!< segment-test score per pixel, 0 = no corner
+  std::vector<std::uint8_t> candidate_;  //!< one row's pre-filter flags
+  std::vector<Corner> bucket_best_;      //!< per_bucket slots per bucket, sorted by score
+  std::vector<std::uint8_t> bucket_n_;   //!< filled slots per bucket
 };
 
 /// Smaller eigenvalue of the structure tensor over a (2*half+1)^2 window at integer (x, y),

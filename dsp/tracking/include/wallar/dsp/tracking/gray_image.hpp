@@ -32,6 +32,23 @@ struct GrayView {
     return (1.0f - ay) * ((1.0f - ax) * r0[0] + ax * r0[1]) +
            ay * ((1.0f - ax) * r1[0] + ax * r1[1]);
   }
+  /// Bilinear samples at (x + i, y + j), i in [0, cols), j in [0, rows), row-major into `out`.
+  /// Every sample of a whole-pixel grid shares one pair of fractional weights, found once. The
+  /// caller keeps the grid and its right and lower neighbours inside (x, y >= 0).
+  void sample_grid(float x, float y, int cols, int rows, float* out) const {
+    const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+    const float ax = x - static_cast<float>(x0), ay = y - static_cast<float>(y0);
+    const float bx = 1.0f - ax, by = 1.0f - ay;
+    for (int j = 0; j < rows; ++j) {
+      const std::uint8_t* r0 = row(y0 + j) + x0;
+      const std::uint8_t* r1 = r0 + stride;
+      float* o = out + static_cast<std::ptrdiff_t>(j) * cols;
+      for (int i = 0; i < cols; ++i) {
+        o[i] = by * (bx * static_cast<float>(r0[i]) + ax * static_cast<float>(r0[i + 1])) +
+               ay * (bx * static_cast<float>(r1[i]) + ax * static_cast<float>(r1[i + 1]));
+      }
+    }
+  }
   [[nodiscard]] bool inside(float x, float y, float border) const {
     return x >= border && y >= border && x < static_cast<float>(width) - 1.0f - border &&
            y < static_cast<float>(height) - 1.0f - border;
