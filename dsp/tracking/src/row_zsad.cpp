@@ -19,13 +19,14 @@ namespace wallar::dsp::row_zsad_detail {
 constexpr int kMaxTaps = (2 * kRowZsadMaxHalfWindow + 1) * (2 * kRowZsadMaxHalfWindow + 1);
 
 /// What every path shares: the template's terms n T_k - sum T, each tap's offset from a patch
-/// centre, and the candidates' patch sums (sliding column sums).
+/// centre, and the candidates' patch sums (sliding column sums). Left uninitialised (12 KB,
+/// hundreds of calls a frame): prepare() writes every entry a call reads.
 struct Setup {
   int taps = 0;
-  std::array<std::int32_t, kMaxTaps> term{};
-  std::array<std::ptrdiff_t, kMaxTaps> offset{};
-  alignas(64) std::array<std::int16_t, kRowZsadMaxCount> sum16{};  // hw <= 3 only
-  std::array<std::int32_t, kRowZsadMaxCount> sum{};
+  std::array<std::int32_t, kMaxTaps> term;
+  std::array<std::ptrdiff_t, kMaxTaps> offset;
+  alignas(64) std::array<std::int16_t, kRowZsadMaxCount> sum16;  // hw <= 3 only
+  std::array<std::int32_t, kRowZsadMaxCount> sum;
 };
 
 inline bool valid(int hw, int count) {
@@ -48,7 +49,7 @@ inline void prepare(const std::uint8_t* tmpl, std::ptrdiff_t tmpl_stride, const 
   }
   for (int i = 0; i < s.taps; ++i) s.term[static_cast<std::size_t>(i)] -= sum_t;
   // Column sums over the window's rows, then a sliding sum along the row.
-  std::array<std::int32_t, kRowZsadMaxCount + 2 * kRowZsadMaxHalfWindow> col{};
+  std::array<std::int32_t, kRowZsadMaxCount + 2 * kRowZsadMaxHalfWindow> col;  // cols written
   const int cols = count + 2 * hw;
   for (int x = 0; x < cols; ++x) {
     std::int32_t c = 0;
