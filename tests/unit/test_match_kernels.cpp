@@ -3,8 +3,6 @@
 // stereo row search's zero-mean SAD, the patch search's gain-normalised SAD): exact agreement of
 // every SIMD target with the scalar reference, and each cost against its definition computed in
 // double precision.
-#include <hwy/targets.h>
-
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -16,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "simd_targets.hpp"
 #include "wallar/dsp/tracking/gray_image.hpp"
 #include "wallar/dsp/tracking/patch_cost.hpp"
 #include "wallar/dsp/tracking/row_zsad.hpp"
@@ -133,22 +132,13 @@ TEST(RowZsad, RefusesWindowsAndCountsItCannotHold) {
 }
 
 // Every SIMD target compiled in and supported by this CPU gives the scalar reference's bits.
-// WALLAR_SIMD_TARGETS=SVE: only the targets whose name contains it (the aarch64 CI stage's
-// second run, on qemu's 'max' CPU).
 TEST(RowZsad, EverySimdTargetOfThisMachineAgrees) {
   const TestImage left = random_image(1000, 30, 11), right = random_image(1000, 30, 12);
-  const char* only = std::getenv("WALLAR_SIMD_TARGETS");
-  std::size_t checked = 0;
-  for (std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
-    if (only != nullptr && std::string(hwy::TargetName(target)).find(only) == std::string::npos)
-      continue;
-    hwy::SetSupportedTargetsForTest(target);
-    SCOPED_TRACE(std::string("on ") + wallar::dsp::row_zsad_target());
+  const std::size_t ran = wallar::test::for_each_simd_target([&] {
+    SCOPED_TRACE(std::string("dispatched to ") + wallar::dsp::row_zsad_target());
     EXPECT_EQ(compare_with_scalar(left, right), 5 * 14);
-    ++checked;
-  }
-  hwy::SetSupportedTargetsForTest(0);  // back to the real CPU
-  EXPECT_GE(checked, 1u) << (only != nullptr ? only : "");
+  });
+  EXPECT_GE(ran, 1u) << wallar::test::simd_filter();
 }
 
 /// An 8x8 patch's deviations from its mean and their mean absolute value, as search_patch
@@ -271,18 +261,9 @@ TEST(PatchCost, TheCostIsTheGainNormalisedZeroMeanSad) {
 
 TEST(PatchCost, EverySimdTargetOfThisMachineAgrees) {
   const TestImage a = patchy_image(300, 24, 31), b = patchy_image(300, 24, 32);
-  const char* only = std::getenv("WALLAR_SIMD_TARGETS");
-  std::size_t checked = 0;
-  for (std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
-    if (only != nullptr && std::string(hwy::TargetName(target)).find(only) == std::string::npos)
-      continue;
-    hwy::SetSupportedTargetsForTest(target);
-    SCOPED_TRACE(std::string("on ") + hwy::TargetName(target));
-    EXPECT_GE(compare_patch_costs(a, b), 10);
-    ++checked;
-  }
-  hwy::SetSupportedTargetsForTest(0);  // back to the real CPU
-  EXPECT_GE(checked, 1u) << (only != nullptr ? only : "");
+  const std::size_t ran =
+      wallar::test::for_each_simd_target([&] { EXPECT_GE(compare_patch_costs(a, b), 10); });
+  EXPECT_GE(ran, 1u) << wallar::test::simd_filter();
 }
 
 /// A lens-like map: the destination sampled from a rotated, scaled, radially distorted source,
@@ -330,19 +311,11 @@ int compare_remaps(const TestImage& src, int stride_pad) {
 
 TEST(RemapKernel, EverySimdTargetOfThisMachineAgrees) {
   const TestImage src = random_image(320, 96, 41);
-  const char* only = std::getenv("WALLAR_SIMD_TARGETS");
-  std::size_t checked = 0;
-  for (std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
-    if (only != nullptr && std::string(hwy::TargetName(target)).find(only) == std::string::npos)
-      continue;
-    hwy::SetSupportedTargetsForTest(target);
-    SCOPED_TRACE(std::string("on ") + hwy::TargetName(target));
+  const std::size_t ran = wallar::test::for_each_simd_target([&] {
     EXPECT_EQ(compare_remaps(src, 0), 2);   // packed rows: the last bytes are the buffer's end
     EXPECT_EQ(compare_remaps(src, 13), 2);  // a row pitch wider than the image
-    ++checked;
-  }
-  hwy::SetSupportedTargetsForTest(0);  // back to the real CPU
-  EXPECT_GE(checked, 1u) << (only != nullptr ? only : "");
+  });
+  EXPECT_GE(ran, 1u) << wallar::test::simd_filter();
 }
 
 TEST(RemapKernel, AnIdentityTableCopiesWhatTheTapsWouldGive) {
@@ -448,19 +421,11 @@ TEST(SegmentPrefilter, NoPixelItRejectsIsACorner) {
 
 TEST(SegmentPrefilter, EverySimdTargetOfThisMachineAgrees) {
   const TestImage a = blob_image(150, 30, 52), b = random_image(150, 30, 53);
-  const char* only = std::getenv("WALLAR_SIMD_TARGETS");
-  std::size_t checked = 0;
-  for (std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
-    if (only != nullptr && std::string(hwy::TargetName(target)).find(only) == std::string::npos)
-      continue;
-    hwy::SetSupportedTargetsForTest(target);
-    SCOPED_TRACE(std::string("on ") + hwy::TargetName(target));
+  const std::size_t ran = wallar::test::for_each_simd_target([&] {
     EXPECT_EQ(compare_prefilter(a), 8);
     EXPECT_EQ(compare_prefilter(b), 8);
-    ++checked;
-  }
-  hwy::SetSupportedTargetsForTest(0);  // back to the real CPU
-  EXPECT_GE(checked, 1u) << (only != nullptr ? only : "");
+  });
+  EXPECT_GE(ran, 1u) << wallar::test::simd_filter();
 }
 
 }  // namespace

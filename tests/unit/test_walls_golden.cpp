@@ -5,13 +5,13 @@
 /// including NEON under qemu-aarch64. Set WALLAR_UPDATE_GOLDEN=1 to rewrite the file after an
 /// intended change (and say why in the commit).
 #include <gtest/gtest.h>
-#include <hwy/targets.h>
 
 #include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "simd_targets.hpp"
 #include "wallar/dsp/walls/plane_kernel.hpp"
 #include "wallar/dsp/walls/synthetic.hpp"
 #include "wallar/dsp/walls/wall_detector.hpp"
@@ -73,26 +73,14 @@ TEST(GoldenWalls, SameDetectionsOnEveryArchitecture) {
   compare(golden, now);
 }
 
-// Every SIMD target compiled in and supported by this CPU (on x86-64 e.g. AVX-512, AVX2, SSE4
-// and SSSE3; Highway's scalar target cannot be forced on x86) gives the same detections.
+// Every SIMD target compiled in and supported by this CPU gives the same detections.
 TEST(GoldenWalls, EverySimdTargetOfThisMachineAgrees) {
   const std::string path = std::string(WALLAR_TEST_DATA) + "/golden/walls.json";
   std::ifstream in(path);
   ASSERT_TRUE(in) << path;
   const nlohmann::json golden = nlohmann::json::parse(in);
-  // WALLAR_SIMD_TARGETS=SVE: only the targets whose name contains it (the aarch64 CI stage's
-  // second run, on qemu's 'max' CPU, checks the SVE kernels its Cortex-A76 run cannot reach).
-  const char* only = std::getenv("WALLAR_SIMD_TARGETS");
-  std::size_t checked = 0;
-  for (std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
-    if (only != nullptr && std::string(hwy::TargetName(target)).find(only) == std::string::npos)
-      continue;
-    hwy::SetSupportedTargetsForTest(target);
-    compare(golden, detections());
-    ++checked;
-  }
-  hwy::SetSupportedTargetsForTest(0);  // back to the real CPU
-  EXPECT_GE(checked, 1u) << (only != nullptr ? only : "");
+  const std::size_t ran = test::for_each_simd_target([&] { compare(golden, detections()); });
+  EXPECT_GE(ran, 1u) << test::simd_filter();
 }
 
 void compare(const nlohmann::json& golden, const nlohmann::json& now) {
