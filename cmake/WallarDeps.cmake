@@ -10,7 +10,11 @@ find_package(Eigen3 3.3 REQUIRED NO_MODULE)
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(YAML REQUIRED IMPORTED_TARGET yaml-0.1)
 pkg_check_modules(PNG REQUIRED IMPORTED_TARGET libpng)
-pkg_check_modules(JPEG REQUIRED IMPORTED_TARGET libjpeg)  # MJPEG frames, JPEG calibration images
+pkg_check_modules(JPEG REQUIRED IMPORTED_TARGET libjpeg)
+# MCAP recordings (drivers/recording/mcap.cpp): chunk compression and CRC-32.
+pkg_check_modules(ZSTD REQUIRED IMPORTED_TARGET libzstd)
+pkg_check_modules(LZ4 REQUIRED IMPORTED_TARGET liblz4)
+pkg_check_modules(ZLIB REQUIRED IMPORTED_TARGET zlib)  # MJPEG frames, JPEG calibration images
 pkg_check_modules(USB REQUIRED IMPORTED_TARGET libusb-1.0)  # drivers/usb: discovery, hot-plug
 pkg_check_modules(SYSTEMD REQUIRED IMPORTED_TARGET libsystemd)  # sd_notify: Type=notify, watchdog
 pkg_check_modules(GPIOD REQUIRED IMPORTED_TARGET libgpiod)  # v1 API (gpiod.h), Debian 12: 1.6.3

@@ -20,13 +20,12 @@
 #if WALLAR_HAVE_BENCHMARK
 #include <benchmark/benchmark.h>
 
+#include <array>
+#include <memory>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
-
-#include <array>
-#include <memory>
 #include <string>
 #include <vector>
 
@@ -34,10 +33,11 @@
 #include "wallar/core/time.hpp"
 #include "wallar/drivers/recording/euroc.hpp"
 #include "wallar/drivers/recording/jpeg.hpp"
+#include "wallar/drivers/recording/mcap_recording.hpp"
+#include "wallar/dsp/stereo/rectifier.hpp"
 #include "wallar/dsp/tracking/mapper.hpp"
 #include "wallar/dsp/tracking/synthetic_motion.hpp"
 #include "wallar/dsp/tracking/synthetic_room.hpp"
-#include "wallar/dsp/stereo/rectifier.hpp"
 #include "wallar/dsp/tracking/tracker.hpp"
 
 namespace wallar::cli {
@@ -52,13 +52,13 @@ struct Sequence {
 };
 
 Sequence euroc_sequence(const std::string& recording) {
-  const recording::EurocRecording rec = recording::read_euroc(recording);
+  const recording::EurocRecording rec = recording::read_recording(recording);
   Sequence s;
   s.rig = rec.rig();
   const std::size_t n = std::min(rec.cams[0].frames.size(), rec.cams[1].frames.size());
   for (std::size_t i = 0; i < n; ++i) {
-    s.pairs.push_back({recording::load_image_gray(rec.cams[0].image_path(rec.cams[0].frames[i])),
-                       recording::load_image_gray(rec.cams[1].image_path(rec.cams[1].frames[i]))});
+    s.pairs.push_back({recording::load_frame_gray(rec, 0, rec.cams[0].frames[i]),
+                       recording::load_frame_gray(rec, 1, rec.cams[1].frames[i])});
     s.order.push_back(i);
   }
   return s;
@@ -88,8 +88,7 @@ void bm_track(benchmark::State& state, const Sequence& seq) {
   std::size_t k = 0, frames = 0;
   for (auto _ : state) {
     const auto& pair = seq.pairs[seq.order[k % seq.order.size()]];
-    const dsp::TrackResult r =
-        tracker.track(static_cast<TimeNs>(k) * 50'000'000, pair[0], pair[1]);
+    const dsp::TrackResult r = tracker.track(static_cast<TimeNs>(k) * 50'000'000, pair[0], pair[1]);
     ++k;
     if (tracker.pending_keyframe() != nullptr) {
       state.PauseTiming();  // the mapping thread's work, not the tracker's
@@ -226,21 +225,21 @@ std::string g_recording;
 void register_track_benchmarks() {
   static const Sequence euroc = euroc_sequence(g_recording);
   static const Sequence synthetic = synthetic_sequence();
-  benchmark::RegisterBenchmark("track/frame/euroc_still",
-                               [](benchmark::State& st) { bm_track(st, euroc); })
-      ->Unit(benchmark::kMillisecond);
-  benchmark::RegisterBenchmark("track/frame/synthetic_moving",
-                               [](benchmark::State& st) { bm_track(st, synthetic); })
-      ->Unit(benchmark::kMillisecond);
-  benchmark::RegisterBenchmark("track/peer/opencv_frontend/euroc_still",
-                               [](benchmark::State& st) { bm_opencv_frontend(st, euroc); })
-      ->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("track/frame/euroc_still", [](benchmark::State& st) {
+    bm_track(st, euroc);
+  })->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("track/frame/synthetic_moving", [](benchmark::State& st) {
+    bm_track(st, synthetic);
+  })->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("track/peer/opencv_frontend/euroc_still", [](benchmark::State& st) {
+    bm_opencv_frontend(st, euroc);
+  })->Unit(benchmark::kMillisecond);
   benchmark::RegisterBenchmark("track/peer/opencv_frontend/synthetic_moving",
                                [](benchmark::State& st) { bm_opencv_frontend(st, synthetic); })
       ->Unit(benchmark::kMillisecond);
-  benchmark::RegisterBenchmark("track/mapping/local_adjust",
-                               [](benchmark::State& st) { bm_local_adjust(st, synthetic); })
-      ->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("track/mapping/local_adjust", [](benchmark::State& st) {
+    bm_local_adjust(st, synthetic);
+  })->Unit(benchmark::kMillisecond);
 }
 
 void set_track_bench_recording(const std::string& recording) { g_recording = recording; }

@@ -42,7 +42,7 @@ RigCalibration calibrated_rig(const recording::EurocRecording& rec,
 int run_imu_cam(const ImuCamArgs& a) {
   recording::ReadOptions options;
   options.check_image_files = true;
-  const recording::EurocRecording rec = recording::read_euroc(a.recording, options);
+  const recording::EurocRecording rec = read_recording_reporting(a.recording, options);
   firmware::ImuCamCalibration c;
   if (a.pairwise) {
     c = firmware::calibrate_imu_cam(rec, a.params);
@@ -108,7 +108,7 @@ struct ImuNoiseArgs {
 };
 
 int run_imu_noise(const ImuNoiseArgs& a) {
-  const recording::EurocRecording rec = recording::read_euroc_imu(a.recording);
+  const recording::EurocRecording rec = recording::read_recording_imu(a.recording);
   const firmware::ImuNoiseCalibration c = firmware::calibrate_imu_noise(rec, a.min_duration_s);
   const auto opt = [](const std::optional<double>& v) {
     return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
@@ -184,7 +184,7 @@ void add_calibrate_command(CLI::App& app, std::function<int()>& run) {
       "imu-cam",
       "IMU-to-left-camera rotation from gyro vs image rotations (the camera must turn about two "
       "axes)");
-  cmd->add_option("recording", a->recording, "EuRoC-layout recording with cam0 and imu0")
+  cmd->add_option("recording", a->recording, "Recording with cam0 and imu0 (EuRoC folder or .mcap)")
       ->required();
   cmd->add_option("--step", a->params.frame_step, "Pair frame k with frame k + STEP")
       ->check(CLI::Range(1, 100))
@@ -214,7 +214,9 @@ void add_calibrate_command(CLI::App& app, std::function<int()>& run) {
       "imu-noise",
       "The IMU's noise densities and random walks from a recording of it at rest (Allan "
       "deviation)");
-  noise->add_option("recording", n->recording, "EuRoC-layout recording with imu0, at rest")
+  noise
+      ->add_option("recording", n->recording,
+                   "Recording with imu0, at rest (EuRoC folder or .mcap)")
       ->required();
   noise->add_option("--min-duration-s", n->min_duration_s, "Shortest recording accepted [s]")
       ->check(CLI::Range(10.0, 1e6))

@@ -168,7 +168,7 @@ int run_all_command(const AllArgs& a) {
   // The recording is read (and checked) before anything is written.
   recording::ReadOptions read_options;
   read_options.check_image_files = false;
-  const CameraCalibration cam0 = recording::read_euroc(a.recording, read_options).cams[0].calib;
+  const CameraCalibration cam0 = read_recording_reporting(a.recording, read_options).cams[0].calib;
   eval::OutputDir out(a.out, !a.no_plots);
   nlohmann::json all = {{"sweeps", nlohmann::json::array()}};
   // Fig. 4.1: one scene of each kind, as files to look at.
@@ -266,7 +266,7 @@ void add_eval_command(CLI::App& app, std::function<int()>& run) {
                 "EuRoC recording for the real-data and marker studies, e.g. "
                 "tests/data/euroc_v1_01_still")
       ->required()
-      ->check(CLI::ExistingDirectory);
+      ->check(CLI::ExistingPath);
   l->add_option("--out", all->out, "Output folder")->capture_default_str();
   l->add_flag("--quick", all->quick, "3 seeds per sweep instead of the defaults (smoke test)");
   l->add_flag("--no-plots", all->no_plots, "Write CSVs and gnuplot scripts, do not draw");

@@ -55,7 +55,7 @@ std::string vec_text(const Eigen::Vector3d& v) {
 CameraCalibration camera_of(const MarkerArgs& a) {
   recording::ReadOptions options;
   options.check_image_files = false;
-  const recording::EurocRecording rec = recording::read_euroc(a.recording, options);
+  const recording::EurocRecording rec = read_recording_reporting(a.recording, options);
   return rec.cams[a.camera == "cam1" ? 1 : 0].calib;
 }
 
@@ -190,7 +190,8 @@ void add_eval_marker_command(CLI::App& eval, std::function<int()>& run) {
                 "Accuracy on rendered views at 0.4-3 m and 0-60 deg into --out DIR");
   cmd->add_flag("--render", a->render,
                 "Write a rendered view (--distance-m, --angle-deg) to --out FILE.png");
-  cmd->add_option("--recording", a->recording, "EuRoC recording whose calibration to use")
+  cmd->add_option("--recording", a->recording,
+                  "Recording (EuRoC folder or .mcap) whose calibration to use")
       ->required();
   cmd->add_option("--camera", a->camera, "Which camera's calibration")
       ->check(CLI::IsMember({"cam0", "cam1"}))

@@ -111,7 +111,8 @@ void add_eval_real_command(CLI::App& eval, std::function<int()>& run) {
   auto a = std::make_shared<EvalRealArgs>();
   CLI::App* cmd = eval.add_subcommand(
       "real", "The room in a real EuRoC recording: floor vs IMU and ground-truth gravity, overlay");
-  cmd->add_option("--recording", a->recording, "EuRoC recording folder (ROOT or ROOT/mav0)")
+  cmd->add_option("--recording", a->recording,
+                  "Recording: EuRoC folder (ROOT or ROOT/mav0) or .mcap file")
       ->required();
   cmd->add_option("--out", a->out, "Folder for real_overlay.png, real_map.csv, real_summary.json")
       ->capture_default_str();

@@ -155,7 +155,7 @@ int run_imu_command(const ImuArgs& a) {
     if (!a.plot_dir.empty()) throw InputError("--plot: needs a recording with ground truth");
     return run_live_imu(a);
   }
-  const recording::EurocRecording rec = recording::read_euroc_imu(a.recording);
+  const recording::EurocRecording rec = recording::read_recording_imu(a.recording);
   if (rec.imu.empty()) {
     throw_input_error((rec.mav0 / "imu0" / "data.csv").string(), 0, "holds no IMU samples");
   }

@@ -31,6 +31,8 @@ struct RecordArgs {
   double duration_s = 0.0;
   double segment_mb = 0.0;  // rotation: a new segment at this size (0: one recording)
   double max_mb = 0.0;      // rotation: the oldest segments deleted above this (0: keep all)
+  std::string format;       // "euroc" or "mcap"; "" = mcap when --out ends in .mcap
+  std::string compression = "zstd";  // MCAP chunks
   bool json = false;
   ReplayFlags flags;
 };
@@ -40,6 +42,18 @@ std::uint64_t mb_to_bytes(double mb) { return static_cast<std::uint64_t>(mb * 10
 // The recording's writer: one EuRoC folder, or rotating segments of one when asked.
 std::unique_ptr<recording::RecordingWriter> make_writer(const RecordArgs& args,
                                                         const RigCalibration& rig) {
+  const bool mcap = args.format == "mcap" ||
+                    (args.format.empty() && std::filesystem::path(args.out).extension() == ".mcap");
+  if (mcap) {
+    if (args.segment_mb > 0.0 || args.max_mb > 0.0) {
+      throw InputError(
+          "wallar record: --segment-mb and --max-mb rotate EuRoC folders; an MCAP "
+          "recording is one file (--format euroc to rotate)");
+    }
+    recording::McapRecordingOptions o;
+    o.compression = recording::mcap::parse_compression(args.compression, "--compression");
+    return std::make_unique<recording::McapRecordingWriter>(args.out, rig, o);
+  }
   if (args.segment_mb <= 0.0 && args.max_mb <= 0.0) {
     std::error_code ec;
     if (std::filesystem::exists(std::filesystem::path(args.out) / "mav0", ec)) {
@@ -258,7 +272,7 @@ int run_record_command(const RecordArgs& args) {
     options.skip = board.replay.skip;
   }
   options = args.flags.apply(options);
-  const recording::EurocRecording rec = recording::read_euroc(source_path);
+  const recording::EurocRecording rec = read_recording_reporting(source_path);
   const std::unique_ptr<recording::RecordingWriter> writer = make_writer(args, rec.rig());
   // The same writer thread as live recording; replay can wait for room, so nothing is dropped,
   // and its images are heap copies already (nothing to give back early): kept by reference.
@@ -290,11 +304,20 @@ int run_record_command(const RecordArgs& args) {
 
 void add_record_command(CLI::App& app, std::function<int()>& run) {
   auto args = std::make_shared<RecordArgs>();
-  CLI::App* cmd = app.add_subcommand("record", "Record the sensor streams in the EuRoC layout");
+  CLI::App* cmd =
+      app.add_subcommand("record", "Record the sensor streams (EuRoC folder, or one MCAP file)");
   cmd->add_option("--board", args->board, "Board file")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--out", args->out, "Folder to write the recording to")->required();
-  cmd->add_option("--from", args->from, "Record from this recording instead of live sensors")
-      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--out", args->out, "Folder (EuRoC) or file (MCAP) to write the recording to")
+      ->required();
+  cmd->add_option("--format", args->format,
+                  "euroc or mcap (default: mcap when --out ends in .mcap, else euroc)")
+      ->check(CLI::IsMember({"euroc", "mcap"}));
+  cmd->add_option("--compression", args->compression, "MCAP chunk compression: zstd, lz4 or none")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"zstd", "lz4", "none"}));
+  cmd->add_option("--from", args->from,
+                  "Record from this recording (EuRoC folder or .mcap) instead of live sensors")
+      ->check(CLI::ExistingPath);
   cmd->add_option("--duration-s", args->duration_s, "Stop after this many seconds (0 = no limit)")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--segment-mb", args->segment_mb,

@@ -59,8 +59,7 @@ StereoFrame load_pair(const recording::EurocRecording& rec, TimeNs t_ns, std::ui
                          [](const recording::FrameEntry& e, TimeNs t) { return e.t_ns < t; });
     if (it == frames.end() || std::llabs(it->t_ns - t_ns) > 2 * kNsPerMs) continue;
     out[c]->t_ns = it->t_ns;
-    out[c]->image = recording::load_png_gray(
-        rec.cams[c].image_path(*it), rec.cams[c].calib.width_px, rec.cams[c].calib.height_px);
+    out[c]->image = recording::load_frame_gray(rec, static_cast<int>(c), *it);
   }
   return f;
 }
@@ -129,7 +128,7 @@ int run_realtime(const RenderArgs& a, const recording::EurocRecording& rec,
 }
 
 int run_render(const RenderArgs& a) {
-  const recording::EurocRecording rec = recording::read_euroc(a.recording);
+  const recording::EurocRecording rec = read_recording_reporting(a.recording);
   firmware::BoardConfig board =
       a.board.empty() ? firmware::BoardConfig{} : firmware::load_board(a.board);
   board.display.backend = "headless";  // offline: never the panel
@@ -222,7 +221,8 @@ void add_render_command(CLI::App& app, std::function<int()>& run) {
   auto args = std::make_shared<RenderArgs>();
   CLI::App* cmd = app.add_subcommand(
       "render", "Render a recording's headset view (camera images with the wall model) as PNGs");
-  cmd->add_option("recording", args->recording, "EuRoC-layout recording (ROOT or ROOT/mav0)")
+  cmd->add_option("recording", args->recording,
+                  "Recording: EuRoC folder (ROOT or ROOT/mav0) or .mcap file")
       ->required();
   cmd->add_option("--out", args->out, "folder for view_NNNNNN.png, walls.json, render_summary.json")
       ->required();

@@ -33,7 +33,7 @@ class CountingSink final : public source::SensorSink {
 };
 
 int run_replay_command(const ReplayArgs& args) {
-  const recording::EurocRecording rec = recording::read_euroc(args.recording);
+  const recording::EurocRecording rec = read_recording_reporting(args.recording);
   source::ReplayOptions options = args.flags.apply({});
   options.with_images = !args.no_images;
   if (args.strict) {
@@ -58,10 +58,12 @@ int run_replay_command(const ReplayArgs& args) {
 
 void add_replay_command(CLI::App& app, std::function<int()>& run) {
   auto args = std::make_shared<ReplayArgs>();
-  CLI::App* cmd = app.add_subcommand("replay", "Play a recording (EuRoC layout) as if live");
-  cmd->add_option("recording", args->recording, "Recording folder (holding mav0/)")
+  CLI::App* cmd =
+      app.add_subcommand("replay", "Play a recording (EuRoC folder or MCAP) as if live");
+  cmd->add_option("recording", args->recording,
+                  "Recording: a folder holding mav0/, or a .mcap file")
       ->required()
-      ->check(CLI::ExistingDirectory);
+      ->check(CLI::ExistingPath);
   cmd->add_flag("--stats", args->stats, "Print counts, rates, gaps and pairing of every stream");
   cmd->add_flag("--json", args->json, "Print the report as JSON on stdout");
   cmd->add_flag("--no-images", args->no_images, "Do not decode images (timing only)");

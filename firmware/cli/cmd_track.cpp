@@ -49,7 +49,7 @@ struct TrackArgs {
 };
 
 int run_track(const TrackArgs& a) {
-  const recording::EurocRecording rec = recording::read_euroc(a.recording);
+  const recording::EurocRecording rec = read_recording_reporting(a.recording);
   // Capacities from the board file when given (as the firmware sizes them at start-up).
   const firmware::BoardConfig board =
       a.board.empty() ? firmware::BoardConfig{} : firmware::load_board(a.board);
@@ -212,7 +212,8 @@ void add_track_command(CLI::App& app, std::function<int()>& run) {
       "track",
       "Run the appliance's tracking, mapping and reconstruction over a recording (TUM trajectory, "
       "PLY map, walls JSON)");
-  cmd->add_option("recording", args->recording, "EuRoC-layout recording (ROOT or ROOT/mav0)")
+  cmd->add_option("recording", args->recording,
+                  "Recording: EuRoC folder (ROOT or ROOT/mav0) or .mcap file")
       ->required();
   cmd->add_option("--out", args->out,
                   "trajectory file, TUM format: t x y z qx qy qz qw (t in s), T_world_body");

@@ -38,6 +38,7 @@ void add_imu_command(CLI::App& app, std::function<int()>& run);
 void add_track_command(CLI::App& app, std::function<int()>& run);
 void add_render_command(CLI::App& app, std::function<int()>& run);
 void add_calibrate_command(CLI::App& app, std::function<int()>& run);
+void add_convert_command(CLI::App& app, std::function<int()>& run);
 void add_calibrate_stereo_commands(CLI::App& calibrate, std::function<int()>& run);
 /// `wallar eval real`, added to the `eval` subcommand.
 void add_eval_real_command(CLI::App& eval, std::function<int()>& run);
@@ -48,10 +49,16 @@ void add_eval_synth_rig_command(CLI::App& eval, std::function<int()>& run);
 
 }  // namespace wallar::cli
 
+#include "wallar/drivers/recording/mcap_recording.hpp"
 #include "wallar/drivers/source/replay_source.hpp"
 #include "wallar/dsp/walls/wall_detector.hpp"
 
 namespace wallar::cli {
+
+/// A recording for a command: a EuRoC folder or an MCAP file (recording::read_recording). What
+/// the reader could not use (an MCAP file cut off by power loss) is said on stderr, one line.
+recording::EurocRecording read_recording_reporting(const std::string& path,
+                                                   const recording::ReadOptions& options = {});
 
 /// Playback flags shared by the commands that play a recording.
 struct ReplayFlags {

@@ -70,6 +70,7 @@ int main(int argc, char** argv) {
   add_track_command(app, run);
   add_render_command(app, run);
   add_calibrate_command(app, run);
+  add_convert_command(app, run);
 
   try {
     app.parse(argc, argv);

@@ -200,10 +200,8 @@ ImuCamCalibration calibrate_imu_cam(const recording::EurocRecording& rec,
     const TimeNs tb = cam.frames[k + step].t_ns;
     if (!usable_pair(rec, ta, tb, params, out)) continue;
     ++out.turning_pairs;
-    const Image a = recording::load_png_gray(cam.image_path(cam.frames[k]), cam.calib.width_px,
-                                             cam.calib.height_px);
-    const Image b = recording::load_png_gray(cam.image_path(cam.frames[k + step]),
-                                             cam.calib.width_px, cam.calib.height_px);
+    const Image a = recording::load_frame_gray(rec, 0, cam.frames[k]);
+    const Image b = recording::load_frame_gray(rec, 0, cam.frames[k + step]);
     const auto visual = dsp::camera_rotation_between(a, b, cam.calib, params.visual);
     if (!visual) {
       ++out.visual_failures;

@@ -73,12 +73,14 @@ std::string format_T_BS(const SE3d& T) {
   return s.str();
 }
 
-void write_text_file(const fs::path& path, const std::string& text) {
+// `sync`: fsync before closing (the small sensor files; images are many and go unsynced, as
+// save_png's do).
+void write_text_file(const fs::path& path, const std::string& text, bool sync = true) {
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0)
     throw_input_error(path.string(), 0, std::string("cannot create: ") + std::strerror(errno));
   write_all(fd, text, path);
-  ::fsync(fd);
+  if (sync) ::fsync(fd);
   ::close(fd);
 }
 
@@ -232,8 +234,8 @@ CameraCalibration read_camera_sensor_yaml(const fs::path& path) {
   return parse_camera_sensor_yaml(read_text_file(path), path.string());
 }
 
-ImuCalibration read_imu_sensor_yaml(const fs::path& path) {
-  const config::YamlDocument doc = config::YamlDocument::load_file(path);
+ImuCalibration parse_imu_sensor_yaml(std::string_view text, const std::string& name) {
+  const config::YamlDocument doc = config::YamlDocument::parse(text, name);
   const config::YamlNode& root = doc.root();
   if (!root.is_map()) root.fail("must be a map of sensor settings");
   ImuCalibration c;
@@ -251,6 +253,25 @@ ImuCalibration read_imu_sensor_yaml(const fs::path& path) {
     c.timeshift_cam_imu_ns = static_cast<std::int64_t>(std::llround(s * 1e9));
   }
   return c;
+}
+
+ImuCalibration read_imu_sensor_yaml(const fs::path& path) {
+  return parse_imu_sensor_yaml(read_text_file(path), path.string());
+}
+
+std::vector<std::uint8_t> load_frame_encoded(const EurocRecording& rec, int cam,
+                                             const FrameEntry& f) {
+  if (rec.store) return rec.store->encoded(cam, f);
+  const fs::path path = rec.cams[static_cast<std::size_t>(cam)].image_path(f);
+  const std::string text = read_text_file(path);
+  return {text.begin(), text.end()};
+}
+
+Image load_frame_gray(const EurocRecording& rec, int cam, const FrameEntry& f) {
+  const CameraStream& c = rec.cams[static_cast<std::size_t>(cam)];
+  if (!rec.store) return load_png_gray(c.image_path(f), c.calib.width_px, c.calib.height_px);
+  return decode_png_gray(rec.store->encoded(cam, f), rec.store->describe(cam, f), c.calib.width_px,
+                         c.calib.height_px);
 }
 
 const GroundTruthState* nearest_ground_truth(const EurocRecording& rec, TimeNs t_ns) {
@@ -375,7 +396,7 @@ void check_stereo_pairs(const EurocRecording& rec, DurationNs tolerance_ns) {
 // ---------------------------------------------------------------------------------------------
 // Writer
 
-void write_camera_sensor_yaml(const fs::path& path, const CameraCalibration& c) {
+std::string format_camera_sensor_yaml(const CameraCalibration& c) {
   std::ostringstream s;
   s << "%YAML:1.0\n# General sensor definitions.\nsensor_type: camera\ncomment: " << c.name
     << " (written by wallar)\n\n# Sensor extrinsics wrt. the body-frame.\n"
@@ -390,10 +411,14 @@ void write_camera_sensor_yaml(const fs::path& path, const CameraCalibration& c) 
     s << (i ? ", " : "") << format_euroc_double(c.distortion[i]);
   }
   s << "]\n";
-  write_text_file(path, s.str());
+  return s.str();
 }
 
-void write_imu_sensor_yaml(const fs::path& path, const ImuCalibration& c) {
+void write_camera_sensor_yaml(const fs::path& path, const CameraCalibration& c) {
+  write_text_file(path, format_camera_sensor_yaml(c));
+}
+
+std::string format_imu_sensor_yaml(const ImuCalibration& c) {
   std::ostringstream s;
   s << "%YAML:1.0\nsensor_type: imu\ncomment: written by wallar\n\n"
     << format_T_BS(c.T_body_imu) << "rate_hz: " << format_euroc_double(c.rate_hz)
@@ -410,7 +435,11 @@ void write_imu_sensor_yaml(const fs::path& path, const ImuCalibration& c) {
     s << "\n# camera-IMU time offset (Kalibr): t_imu = t_cam + timeshift_cam_imu [s]\n"
       << "timeshift_cam_imu: " << format_euroc_double(ns_to_s(c.timeshift_cam_imu_ns)) << "\n";
   }
-  write_text_file(path, s.str());
+  return s.str();
+}
+
+void write_imu_sensor_yaml(const fs::path& path, const ImuCalibration& c) {
+  write_text_file(path, format_imu_sensor_yaml(c));
 }
 
 EurocWriter::EurocWriter(const fs::path& root, const RigCalibration& rig,
@@ -427,7 +456,9 @@ EurocWriter::EurocWriter(const fs::path& root, const RigCalibration& rig,
     write_camera_sensor_yaml(dir / "sensor.yaml", rig.cams[static_cast<std::size_t>(i)]);
     cam_fd_[static_cast<std::size_t>(i)] = open_csv(dir / "data.csv", kCamHeader);
   }
-  write_imu_sensor_yaml(mav0_ / "imu0" / "sensor.yaml", rig.imu);
+  // A vision-only rig (no IMU rate) gets no imu0/sensor.yaml: read_euroc takes an imu0 folder
+  // with a header-only data.csv and no sensor.yaml as a recording without an IMU.
+  if (rig.imu.rate_hz > 0.0) write_imu_sensor_yaml(mav0_ / "imu0" / "sensor.yaml", rig.imu);
   imu_fd_ = open_csv(mav0_ / "imu0" / "data.csv", kImuHeader);
 }
 
@@ -473,10 +504,41 @@ void EurocWriter::write_camera(int cam, const CameraFrame& frame) {
   ++cam_rows_[idx];
 }
 
+void EurocWriter::write_camera_png(int cam, TimeNs t_ns, std::span<const std::uint8_t> png) {
+  if (closed_) throw_input_error(mav0_.string(), 0, "recording already closed");
+  const auto idx = static_cast<std::size_t>(cam);
+  const fs::path dir = mav0_ / ("cam" + std::to_string(cam));
+  const std::string name = std::to_string(t_ns) + ".png";
+  const fs::path tmp = dir / "data" / (name + ".part");
+  write_text_file(tmp, std::string(png.begin(), png.end()), false);
+  std::error_code ec;
+  fs::rename(tmp, dir / "data" / name, ec);
+  if (ec) throw_input_error(tmp.string(), 0, "cannot rename: " + ec.message());
+  const std::string row = std::to_string(t_ns) + "," + name + "\n";
+  write_all(cam_fd_[idx], row, dir / "data.csv");
+  bytes_ += png.size() + row.size();
+  ++cam_rows_[idx];
+}
+
+void EurocWriter::write_ground_truth(const GroundTruthState& state) {
+  if (closed_) throw_input_error(mav0_.string(), 0, "recording already closed");
+  const fs::path dir = mav0_ / "state_groundtruth_estimate0";
+  if (gt_fd_ < 0) {
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) throw_input_error(dir.string(), 0, "cannot create folder: " + ec.message());
+    const std::string header(ground_truth_csv_header());
+    gt_fd_ = open_csv(dir / "data.csv", header.c_str());
+  }
+  const std::string row = format_ground_truth_row(state);
+  write_all(gt_fd_, row, dir / "data.csv");
+  bytes_ += row.size();
+}
+
 void EurocWriter::close() {
   if (closed_) return;
   closed_ = true;
-  for (int* fd : {&imu_fd_, &cam_fd_[0], &cam_fd_[1]}) {
+  for (int* fd : {&imu_fd_, &gt_fd_, &cam_fd_[0], &cam_fd_[1]}) {
     if (*fd < 0) continue;
     ::fsync(*fd);
     ::close(*fd);

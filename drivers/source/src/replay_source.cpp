@@ -130,8 +130,7 @@ ReplayStats ReplaySource::run(SensorSink& sink, const std::atomic<bool>& stop) {
     frame.t_ns = entry.t_ns;
     frame.sequence = i_cam[static_cast<std::size_t>(which)]++;
     if (options_.with_images) {
-      frame.image =
-          recording::load_png_gray(cam.image_path(entry), cam.calib.width_px, cam.calib.height_px);
+      frame.image = recording::load_frame_gray(rec_, which, entry);
     }
     frame.publish_t_ns = monotonic_now_ns();
     ++stats.frames[static_cast<std::size_t>(which)];

@@ -13,6 +13,7 @@
 #include "wallar/core/triple_buffer.hpp"
 #include "wallar/drivers/recording/calibration_files.hpp"
 #include "wallar/drivers/recording/euroc.hpp"
+#include "wallar/drivers/recording/mcap_recording.hpp"
 #include "wallar/firmware/appliance.hpp"
 #include "wallar/firmware/appliance/inputs.hpp"
 #include "wallar/firmware/appliance/live_module.hpp"
@@ -114,7 +115,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   RigCalibration rig;
   std::string rig_source;
   if (replay) {
-    if (rec == nullptr) rec = &read.emplace(recording::read_euroc(board.replay.recording));
+    if (rec == nullptr) rec = &read.emplace(recording::read_recording(board.replay.recording));
     rig = rec->rig();
     rig_source = rec->mav0.string();
   } else {

@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "wallar/core/error.hpp"
-#include "wallar/drivers/recording/euroc.hpp"
+#include "wallar/drivers/recording/mcap_recording.hpp"
 #include "wallar/drivers/source/replay_source.hpp"
 #include "wallar/dsp/imu/static_init.hpp"
 #include "wallar/dsp/stereo/sparse_stereo.hpp"
@@ -167,7 +167,7 @@ nlohmann::json run_real_study(const RealStudyOptions& options, OutputDir& out) {
   if (!(options.threshold_m > 0.0) || !std::isfinite(options.threshold_m)) {
     throw_input_error(where, 0, "--threshold-m must be a positive number of metres");
   }
-  const recording::EurocRecording rec = recording::read_euroc(options.recording);
+  const recording::EurocRecording rec = recording::read_recording(options.recording);
 
   // The stereo pairs, paired as replay pairs them (tolerance: half a frame period).
   source::ReplayOptions list_options;
@@ -189,8 +189,7 @@ nlohmann::json run_real_study(const RealStudyOptions& options, OutputDir& out) {
     for (int c = 0; c < 2; ++c) {
       const recording::CameraStream& cam = rec.cams[static_cast<std::size_t>(c)];
       CameraFrame& side = c == 0 ? f.left : f.right;
-      side.image = recording::load_png_gray(cam.image_path(cam.frames[side.sequence]),
-                                            cam.calib.width_px, cam.calib.height_px);
+      side.image = recording::load_frame_gray(rec, c, cam.frames[side.sequence]);
     }
     return f;
   };

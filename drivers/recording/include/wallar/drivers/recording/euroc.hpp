@@ -11,12 +11,18 @@
 ///   ROOT/mav0/imu0/sensor.yaml
 ///   ROOT/mav0/state_groundtruth_estimate0/data.csv  (optional) t, p, q(wxyz), v, bw, ba
 ///
-/// Threading: EurocRecording is immutable after reading; EurocWriter is used by one thread.
+/// The same model holds a recording read from one MCAP file (mcap_recording.hpp): its images
+/// then come from a FrameStore instead of files; load_frame_gray() reads either.
+///
+/// Threading: EurocRecording is immutable after reading (a FrameStore may be read from any
+/// thread); EurocWriter is used by one thread.
 #pragma once
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -32,8 +38,19 @@ namespace wallar::recording {
 /// One row of a camera's data.csv.
 struct FrameEntry {
   TimeNs t_ns = 0;
-  std::string filename;  //!< relative to the camera's data/ folder
-  int line = 0;          //!< line in data.csv, for error messages
+  std::string filename;         //!< relative to the camera's data/ folder
+  int line = 0;                 //!< line in data.csv, for error messages
+  std::size_t store_index = 0;  //!< the frame's key in EurocRecording::store, when there is one
+};
+
+/// Encoded images that do not live in files (an MCAP recording's messages).
+class FrameStore {
+ public:
+  virtual ~FrameStore() = default;
+  /// The frame's image as encoded (PNG bytes). Thread-safe. Throws InputError.
+  [[nodiscard]] virtual std::vector<std::uint8_t> encoded(int cam, const FrameEntry& f) const = 0;
+  /// Names the frame in error messages ("REC.mcap: /cam0 message at t=...").
+  [[nodiscard]] virtual std::string describe(int cam, const FrameEntry& f) const = 0;
 };
 
 struct CameraStream {
@@ -66,6 +83,11 @@ struct EurocRecording {
   std::vector<ImuSample> imu;  //!< strictly increasing t_ns; empty for a vision-only recording
   ImuCalibration imu_calib;
   std::vector<GroundTruthState> ground_truth;  //!< empty when the recording has none
+  /// The images, when they are not files under cams[i].dir/data; null for a EuRoC folder.
+  std::shared_ptr<const FrameStore> store;
+  /// What the reader could not use ("" when nothing): an MCAP file cut off by power loss reads
+  /// up to its last complete chunk and says so here, for the command to report.
+  std::string read_note;
 
   [[nodiscard]] RigCalibration rig() const {
     // EuRoC's body frame is the IMU's: the cameras' T_BS place them against it.
@@ -101,6 +123,12 @@ EurocRecording read_euroc(const std::filesystem::path& root, const ReadOptions& 
 /// stay empty. Throws InputError as read_euroc does.
 EurocRecording read_euroc_imu(const std::filesystem::path& root);
 
+/// The encoded (PNG) bytes of one frame, from its file or from the recording's store.
+std::vector<std::uint8_t> load_frame_encoded(const EurocRecording& rec, int cam,
+                                             const FrameEntry& f);
+/// One frame as 8-bit gray, checked against the camera's resolution; throws InputError.
+Image load_frame_gray(const EurocRecording& rec, int cam, const FrameEntry& f);
+
 /// Parses one CSV of each kind (exposed for tests and fuzzing). `name` appears in errors.
 std::vector<FrameEntry> parse_camera_csv(std::string_view text, const std::string& name);
 std::vector<ImuSample> parse_imu_csv(std::string_view text, const std::string& name);
@@ -122,6 +150,7 @@ void check_stereo_pairs(const EurocRecording& rec, DurationNs tolerance_ns);
 CameraCalibration read_camera_sensor_yaml(const std::filesystem::path& path);
 ImuCalibration read_imu_sensor_yaml(const std::filesystem::path& path);
 CameraCalibration parse_camera_sensor_yaml(std::string_view text, const std::string& name);
+ImuCalibration parse_imu_sensor_yaml(std::string_view text, const std::string& name);
 
 /// Loads an 8-bit gray PNG into a fresh buffer. Throws InputError when the file is missing,
 /// unreadable, or (when expected sizes are > 0) not expected_width x expected_height.
@@ -135,6 +164,11 @@ Image load_png_rgb(const std::filesystem::path& path);
 void save_png_gray(const std::filesystem::path& path, const Image& image, bool fast = false);
 /// Writes an 8-bit gray or RGB image as PNG; throws InputError on failure.
 void save_png(const std::filesystem::path& path, const Image& image, bool fast = false);
+/// Decodes an 8-bit gray PNG held in memory; errors name `name`.
+Image decode_png_gray(std::span<const std::uint8_t> bytes, const std::string& name,
+                      int expected_width = 0, int expected_height = 0);
+/// Encodes an 8-bit gray image as PNG in memory, fast (zlib level 1, as save_png_gray's fast).
+std::vector<std::uint8_t> encode_png_gray(const Image& image, const std::string& name);
 /// Encodes an 8-bit RGB image as PNG in memory (for writers that place the file themselves,
 /// e.g. atomically); throws InputError naming `name` on failure.
 std::vector<std::uint8_t> encode_png_rgb(const Image& image, const std::string& name);
@@ -175,6 +209,10 @@ class EurocWriter final : public RecordingWriter {
   void write_imu(const ImuSample& sample) override;
   void write_camera(int cam, const CameraFrame& frame) override;
   using RecordingWriter::write_stereo;
+  /// A frame already encoded as PNG (copied from another recording, byte for byte).
+  void write_camera_png(int cam, TimeNs t_ns, std::span<const std::uint8_t> png);
+  /// One row of state_groundtruth_estimate0/data.csv (the file is made on the first row).
+  void write_ground_truth(const GroundTruthState& state);
   void close() override;
 
   [[nodiscard]] std::size_t imu_written() const { return imu_rows_; }
@@ -187,6 +225,7 @@ class EurocWriter final : public RecordingWriter {
   std::filesystem::path mav0_;
   EurocWriterOptions options_;
   int imu_fd_ = -1;                    //!< imu0/data.csv, O_APPEND
+  int gt_fd_ = -1;                     //!< state_groundtruth_estimate0/data.csv, once needed
   std::array<int, 2> cam_fd_{-1, -1};  //!< camN/data.csv, O_APPEND
   std::size_t imu_rows_ = 0;
   std::array<std::size_t, 2> cam_rows_{0, 0};
@@ -197,5 +236,8 @@ class EurocWriter final : public RecordingWriter {
 /// Writes EuRoC sensor.yaml files (readable by read_*_sensor_yaml and by Kalibr/Basalt tools).
 void write_camera_sensor_yaml(const std::filesystem::path& path, const CameraCalibration& calib);
 void write_imu_sensor_yaml(const std::filesystem::path& path, const ImuCalibration& calib);
+/// The same files' text (parse_*_sensor_yaml reads it back exactly).
+std::string format_camera_sensor_yaml(const CameraCalibration& calib);
+std::string format_imu_sensor_yaml(const ImuCalibration& calib);
 
 }  // namespace wallar::recording
