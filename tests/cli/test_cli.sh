@@ -766,6 +766,56 @@ key = lambda d: [(s['id'], s['kind'], s['normal'], s['d'], s['inliers']) for s i
 assert key(a) == key(b) and len(a['surfaces']) >= 2, (key(a), key(b))
 PY
   ;;
+mcap)
+  # MCAP: the bundled recording converted and read by Foxglove's reference reader (@mcap/core,
+  # installed by tools/setup), tracked to the same trajectory as its EuRoC folder; a recording
+  # of the sim board; 20 random cuts, each replayed up to its last complete chunk, as the
+  # reference's own stream reader recovers it, and the loss said on stderr.
+  ref() { node "$src/tests/cli/mcap_reference.cjs" "$src/tools/node" "$@"; }
+  command -v node >/dev/null && [ -d "$src/tools/node/node_modules/@mcap/core" ] ||
+    fail "no Node.js or no tools/node/node_modules (run tools/setup)"
+  run convert "$rec" "$tmp/still.mcap" --json; expect_rc 0
+  [ "$(json "d['frames']")" = "[40, 40]" ] || fail "converted frames"
+  ref "$tmp/still.mcap" /cam0=40 /cam1=40 /imu0=491 /ground_truth=50 >"$tmp/ref" ||
+    fail "the reference reader refused the converted file"
+  run convert "$rec" "$tmp/still.lz4.mcap" --compression lz4; expect_rc 0
+  ref "$tmp/still.lz4.mcap" /cam0=40 /imu0=491 >/dev/null || fail "lz4 file refused"
+  run track "$rec" --lockstep --out "$tmp/euroc.tum"; expect_rc 0
+  run track "$tmp/still.mcap" --lockstep --out "$tmp/mcap.tum"; expect_rc 0
+  [ ! -s "$tmp/err" ] || fail "stderr on a whole file: $(cat "$tmp/err")"
+  cmp "$tmp/euroc.tum" "$tmp/mcap.tum" || fail "trajectories differ"
+  run convert "$tmp/still.mcap" "$tmp/back"; expect_rc 0
+  cmp "$rec/mav0/imu0/data.csv" "$tmp/back/mav0/imu0/data.csv" || fail "imu0 differs after MCAP"
+  diff -r "$rec/mav0/cam1/data" "$tmp/back/mav0/cam1/data" >/dev/null || fail "PNGs differ"
+  run convert "$rec" "$tmp/still.mcap"; expect_rc 2; one_err_line; expect_err "already exists"
+  run convert "$rec" "$tmp/x.bin"; expect_rc 2; one_err_line; expect_err "name it NAME.mcap"
+  # The sim board recorded to MCAP: counts equal the recorder's rows.
+  run record --board "$src/board/sim.yaml" --out "$tmp/rec.mcap" --fast --json; expect_rc 0
+  imu_rows=$(json "d['imu_rows']"); cam_rows=$(json "d['cam_rows'][0]")
+  [ "$imu_rows" = 491 ] && [ "$cam_rows" = 40 ] || fail "recorded $imu_rows / $cam_rows"
+  ref "$tmp/rec.mcap" /cam0=$cam_rows /cam1=40 /imu0=$imu_rows >/dev/null || fail "recording refused"
+  run record --board "$src/board/sim.yaml" --out "$tmp/rec2" --format mcap --segment-mb 5
+  expect_rc 2; one_err_line; expect_err "one file"
+  # Power loss: 20 cuts at seeded random bytes.
+  size=$(stat -c %s "$tmp/still.mcap")
+  for cut in $(python3 -c "import random; r = random.Random(21); print(*sorted(r.randrange(8, $size) for _ in range(20)))"); do
+    head -c "$cut" "$tmp/still.mcap" >"$tmp/cut.mcap"
+    want=$(ref "$tmp/cut.mcap" --stream) || fail "reference stream read of the cut at $cut"
+    run replay "$tmp/cut.mcap" --stats --fast --json
+    case "$(rc)" in
+    0) expect_err "cut off: read"  # (and a frame whose partner was lost, when the cut split them)
+       python3 - "$tmp/out" "$want" <<'PY' || fail "cut at $cut: $(cat "$tmp/err")"
+import json, sys
+got, want = json.load(open(sys.argv[1]))['streams'], json.loads(sys.argv[2])['counts']
+for ours, topic in (('cam0', '/cam0'), ('cam1', '/cam1'), ('imu0', '/imu0')):
+    assert got[ours]['count'] == want.get(topic, 0), (ours, got[ours]['count'], want)
+PY
+       ;;
+    2) one_err_line; expect_err "$tmp/cut.mcap" ;;  # cut before the calibration: said, no crash
+    *) fail "cut at $cut: exit code $(rc): $(cat "$tmp/err")" ;;
+    esac
+  done
+  ;;
 track_no_imu)
   # Vision-only recordings: no imu0 folder at all, or an imu0/data.csv with its header only.
   # Accepted by track, run and render with nothing on stderr; no IMU is not a lost IMU.
