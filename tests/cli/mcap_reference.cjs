@@ -6,10 +6,11 @@
 // messages that parse under their channel's JSON schema's required fields.
 //
 // usage: node mcap_reference.cjs NODE_DIR FILE TOPIC=COUNT...
-//        node mcap_reference.cjs NODE_DIR FILE --stream
+//        node mcap_reference.cjs NODE_DIR --stream FILE...
 // Prints one JSON line of what it read; exits 1 with a message on the first failed check.
-// --stream: a file that may be cut short, read front to back as far as it goes; prints the
-// message count per topic of the complete records (what a reader can recover).
+// --stream: files that may be cut short, each read front to back as far as it goes; prints,
+// a line per file, the message count per topic of the complete records (what a reader can
+// recover).
 "use strict";
 const path = require("node:path");
 const fs = require("node:fs");
@@ -25,24 +26,26 @@ function fail(msg) {
   process.exit(1);
 }
 
-async function streamCounts() {
+async function streamCounts(files) {
   const decompressHandlers = await loadDecompressHandlers();
-  const stream = new McapStreamReader({ decompressHandlers, validateCrcs: true });
-  stream.append(new Uint8Array(fs.readFileSync(file)));
-  const topics = new Map();
-  const counts = {};
-  for (let r; (r = stream.nextRecord()); ) {
-    if (r.type === "Channel") {
-      topics.set(r.id, r.topic);
-      counts[r.topic] ??= 0;
+  for (const f of files) {
+    const stream = new McapStreamReader({ decompressHandlers, validateCrcs: true });
+    stream.append(new Uint8Array(fs.readFileSync(f)));
+    const topics = new Map();
+    const counts = {};
+    for (let r; (r = stream.nextRecord()); ) {
+      if (r.type === "Channel") {
+        topics.set(r.id, r.topic);
+        counts[r.topic] ??= 0;
+      }
+      if (r.type === "Message") counts[topics.get(r.channelId)] += 1;
     }
-    if (r.type === "Message") counts[topics.get(r.channelId)] += 1;
+    console.log(JSON.stringify({ file: f, complete: stream.done(), counts }));
   }
-  console.log(JSON.stringify({ complete: stream.done(), counts }));
 }
 
 async function main() {
-  if (expected[0] === "--stream") return streamCounts();
+  if (file === "--stream") return streamCounts(expected);
   const decompressHandlers = await loadDecompressHandlers();
   const fd = await fs.promises.open(file, "r");
   const size = (await fd.stat()).size;

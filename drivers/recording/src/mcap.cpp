@@ -193,12 +193,19 @@ std::vector<std::uint8_t> compress(Compression c, const std::vector<std::uint8_t
 // Decompresses a chunk's records to exactly `size` bytes; false when the data does not.
 bool decompress(Compression c, const std::vector<std::uint8_t>& in, std::uint64_t size,
                 std::vector<std::uint8_t>& out) {
-  out.resize(static_cast<std::size_t>(size));
   if (c == Compression::kNone) {
     if (in.size() != size) return false;
     out = in;
     return true;
   }
+  if (c == Compression::kZstd) {
+    // The frame says its size: a mismatch is damage, found before allocating for it.
+    const unsigned long long frame = ZSTD_getFrameContentSize(in.data(), in.size());
+    if (frame == ZSTD_CONTENTSIZE_ERROR || (frame != ZSTD_CONTENTSIZE_UNKNOWN && frame != size)) {
+      return false;
+    }
+  }
+  out.resize(static_cast<std::size_t>(size));
   if (c == Compression::kZstd) {
     const std::size_t r = ZSTD_decompress(out.data(), out.size(), in.data(), in.size());
     return !ZSTD_isError(r) && r == size;
@@ -277,11 +284,22 @@ Writer::~Writer() {
 }
 
 void Writer::check_open() const {
+  if (failed_) {
+    throw_input_error(path_.string(), 0,
+                      "an earlier write failed; the file keeps what was written before it");
+  }
   if (closed_) throw_input_error(path_.string(), 0, "MCAP file already closed");
 }
 
 void Writer::write_bytes(const std::vector<std::uint8_t>& bytes) {
-  write_all(fd_, bytes.data(), bytes.size(), path_.string());
+  try {
+    write_all(fd_, bytes.data(), bytes.size(), path_.string());
+  } catch (const InputError&) {
+    // A partial record may now end the file; writing on (the same chunk again at close) would
+    // put a whole record after a torn one. Stop here: readers read up to the torn record.
+    failed_ = true;
+    throw;
+  }
   data_crc_ = crc32_update(data_crc_, bytes.data(), bytes.size());
   offset_ += bytes.size();
 }
@@ -429,7 +447,20 @@ void Writer::flush_chunk() {
 
 void Writer::close() {
   if (closed_) return;
-  flush_chunk();
+  if (failed_) {
+    closed_ = true;
+    ::close(fd_);
+    fd_ = -1;
+    return;
+  }
+  try {
+    flush_chunk();
+  } catch (const InputError&) {
+    closed_ = true;
+    ::close(fd_);
+    fd_ = -1;
+    throw;
+  }
   closed_ = true;
   Out tail;
   {
@@ -486,7 +517,13 @@ void Writer::close() {
   const std::size_t summary_pos = static_cast<std::size_t>(summary_start - offset_);
   tail.u32(crc32_update(0, tail.b.data() + summary_pos, tail.b.size() - summary_pos));
   tail.raw(kMagic, sizeof kMagic);
-  write_all(fd_, tail.b.data(), tail.b.size(), path_.string());
+  try {
+    write_all(fd_, tail.b.data(), tail.b.size(), path_.string());
+  } catch (const InputError&) {
+    ::close(fd_);
+    fd_ = -1;
+    throw;
+  }
   offset_ += tail.b.size();
   const bool synced = ::fsync(fd_) == 0;
   const int saved = errno;
@@ -511,19 +548,25 @@ File::~File() {
   if (fd_ >= 0) ::close(fd_);
 }
 
+std::string File::try_unpack(const ChunkLocation& loc, const std::vector<std::uint8_t>& packed,
+                             std::vector<std::uint8_t>& out) {
+  if (!decompress(loc.compression, packed, loc.uncompressed_size, out)) {
+    return std::string("it does not decompress (") + compression_name(loc.compression) +
+           ") to its " + std::to_string(loc.uncompressed_size) + " bytes";
+  }
+  if (loc.crc != 0 && crc32_update(0, out.data(), out.size()) != loc.crc) {
+    return "its records do not match its CRC";
+  }
+  return {};
+}
+
 std::vector<std::uint8_t> File::unpack_chunk(const ChunkLocation& loc,
                                              const std::vector<std::uint8_t>& packed) const {
   std::vector<std::uint8_t> out;
-  if (!decompress(loc.compression, packed, loc.uncompressed_size, out)) {
+  const std::string problem = try_unpack(loc, packed, out);
+  if (!problem.empty()) {
     throw_input_error(path_.string(), 0,
-                      "byte " + std::to_string(loc.records_offset) + ": chunk does not " +
-                          "decompress (" + compression_name(loc.compression) + ") to its " +
-                          std::to_string(loc.uncompressed_size) + " bytes");
-  }
-  if (loc.crc != 0 && crc32_update(0, out.data(), out.size()) != loc.crc) {
-    throw_input_error(path_.string(), 0,
-                      "byte " + std::to_string(loc.records_offset) +
-                          ": chunk CRC mismatch (its records are damaged)");
+                      "byte " + std::to_string(loc.records_offset) + ": damaged chunk: " + problem);
   }
   return out;
 }
@@ -571,6 +614,7 @@ std::unique_ptr<File> File::open(const std::filesystem::path& path) {
   f->report_.bytes_used = pos;
   bool first = true;
   bool data_end = false;
+  bool data_damaged = false;
   std::vector<std::uint8_t> content;
 
   // Parses the Schema, Channel and Message records of the data section or of one chunk.
@@ -652,9 +696,11 @@ std::unique_ptr<File> File::open(const std::filesystem::path& path) {
         const std::uint32_t expected = static_cast<std::uint32_t>(c[0]) | (c[1] << 8) |
                                        (c[2] << 16) | (static_cast<std::uint32_t>(c[3]) << 24);
         if (expected != 0 && expected != crc) {
-          throw_input_error(
-              name, 0,
-              "byte " + std::to_string(pos) + ": data section CRC mismatch (the file is damaged)");
+          // Every chunk passed its own CRC: what is damaged lies outside them (a message index).
+          data_damaged = true;
+          f->report_.stop_reason = "byte " + std::to_string(pos) +
+                                   ": data section CRC mismatch (a record outside the chunks is "
+                                   "damaged; every chunk's own CRC held)";
         }
       }
       pos += kRecordHeader + len;
@@ -688,9 +734,16 @@ std::unique_ptr<File> File::open(const std::filesystem::path& path) {
         in.fail("uncompressed size " + std::to_string(loc.uncompressed_size) +
                 " is over the 256 MiB a chunk may hold here");
       }
+      std::vector<std::uint8_t> records;
+      if (const std::string problem = try_unpack(loc, packed, records); !problem.empty()) {
+        // Power loss can leave a chunk whose length landed but whose data did not (zeros):
+        // everything before it is good, so read up to it rather than refuse the file.
+        f->report_.stop_reason =
+            "a damaged chunk at byte " + std::to_string(pos) + " (" + problem + ")";
+        break;
+      }
       const auto index = static_cast<std::int64_t>(f->chunks_.size());
       f->chunks_.push_back(loc);
-      std::vector<std::uint8_t> records = f->unpack_chunk(loc, packed);
       std::size_t at = 0;
       while (at < records.size()) {
         In r{records.data(), records.size(), at, 0, &name, "record in the chunk"};
@@ -741,7 +794,7 @@ std::unique_ptr<File> File::open(const std::filesystem::path& path) {
   const std::uint64_t summary_start = footer.u64();
   const std::uint64_t summary_offset_start = footer.u64();
   const std::uint32_t summary_crc = footer.u32();
-  f->report_.complete = true;
+  f->report_.complete = !data_damaged;
   if (summary_start == 0) return f;
   if (summary_start < pos || summary_start > footer_pos) {
     throw_input_error(name, 0,

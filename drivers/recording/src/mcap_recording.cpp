@@ -4,8 +4,11 @@
 #include "wallar/drivers/recording/mcap_recording.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <optional>
+#include <string_view>
 
 #include "wallar/core/error.hpp"
 
@@ -207,21 +210,56 @@ Eigen::Vector3d vec3_at(const json& j, const char* key, const MessageContext& ct
   return {number_at(*it, "x", ctx), number_at(*it, "y", ctx), number_at(*it, "z", ctx)};
 }
 
+// The value of the object member `"key": "..."` when it is a string without escapes, found
+// without parsing the rest. A match is a member name only when a ':' follows it (a string value
+// followed by ':' is not JSON) and no backslash precedes it (inside a string the quotes would be
+// escaped). nullopt when absent or not that simple: the caller then parses the message.
+std::optional<std::string_view> plain_string_member(std::string_view text, std::string_view key) {
+  const std::string quoted = "\"" + std::string(key) + "\"";
+  for (std::size_t at = text.find(quoted); at != std::string_view::npos;
+       at = text.find(quoted, at + 1)) {
+    if (at > 0 && text[at - 1] == '\\') continue;
+    std::size_t p = at + quoted.size();
+    auto skip_space = [&] {
+      while (p < text.size() &&
+             (text[p] == ' ' || text[p] == '\n' || text[p] == '\r' || text[p] == '\t'))
+        ++p;
+    };
+    skip_space();
+    if (p >= text.size() || text[p] != ':') continue;
+    ++p;
+    skip_space();
+    if (p >= text.size() || text[p] != '"') return std::nullopt;
+    const std::size_t end = text.find_first_of("\"\\", p + 1);
+    if (end == std::string_view::npos || text[end] != '"') return std::nullopt;
+    return text.substr(p + 1, end - p - 1);
+  }
+  return std::nullopt;
+}
+
 class McapFrames final : public FrameStore {
  public:
   explicit McapFrames(std::shared_ptr<const mcap::File> file) : file_(std::move(file)) {}
 
   std::vector<std::uint8_t> encoded(int cam, const FrameEntry& f) const override {
     const MessageContext ctx{&file_->path(), kCamTopic[cam], static_cast<std::uint64_t>(f.t_ns)};
-    const json j = parse_message(file_->read_message(file_->messages().at(f.store_index)), ctx);
-    const auto format = j.find("format");
-    if (format == j.end() || !format->is_string() || *format != "png") {
+    const std::vector<std::uint8_t> message =
+        file_->read_message(file_->messages().at(f.store_index));
+    std::vector<std::uint8_t> png;
+    // The usual message (ours, or any writer's that escapes nothing in these two strings) is
+    // read without building a JSON tree of the 0.3 MB string; anything else takes the parser.
+    const std::string_view text(reinterpret_cast<const char*>(message.data()), message.size());
+    const std::optional<std::string_view> format = plain_string_member(text, "format");
+    const std::optional<std::string_view> data = plain_string_member(text, "data");
+    if (format && *format == "png" && data && base64_decode(*data, png)) return png;
+    const json j = parse_message(message, ctx);
+    const auto format_it = j.find("format");
+    if (format_it == j.end() || !format_it->is_string() || *format_it != "png") {
       ctx.fail("image format is not \"png\"");
     }
-    const auto data = j.find("data");
-    std::vector<std::uint8_t> png;
-    if (data == j.end() || !data->is_string() ||
-        !base64_decode(data->get_ref<const std::string&>(), png)) {
+    const auto data_it = j.find("data");
+    if (data_it == j.end() || !data_it->is_string() ||
+        !base64_decode(data_it->get_ref<const std::string&>(), png)) {
       ctx.fail("'data' is not base64");
     }
     return png;
@@ -336,8 +374,8 @@ EurocRecording read_mcap_recording(const fs::path& path, bool require_cameras) {
   if (!report.complete) {
     char note[512];
     std::snprintf(note, sizeof note,
-                  "%s: cut off: read %llu of %llu bytes, up to the last complete chunk (%llu "
-                  "chunks, %zu messages); the rest is lost: %s",
+                  "%s: cut off or damaged: read %llu of %llu bytes, %llu whole chunks (%zu "
+                  "messages); what follows is lost: %s",
                   name.c_str(), static_cast<unsigned long long>(report.bytes_used),
                   static_cast<unsigned long long>(report.file_bytes),
                   static_cast<unsigned long long>(report.chunks), file->messages().size(),

@@ -82,6 +82,7 @@ class Writer {
   std::uint64_t offset_ = 0;
   std::uint32_t data_crc_ = 0;  // running CRC-32 of the data section (from the leading magic)
   bool closed_ = false;
+  bool failed_ = false;  // a write failed: nothing more is written (the file may end torn)
   std::vector<std::vector<std::uint8_t>> schemas_;   // serialized records, for the summary
   std::vector<std::vector<std::uint8_t>> channels_;  // the same
   std::vector<std::vector<std::uint8_t>> metadata_index_;
@@ -125,7 +126,7 @@ struct MessageRef {
 
 /// What open() found at the end of the file.
 struct ReadReport {
-  bool complete = false;         //!< the footer and trailing magic were there and valid
+  bool complete = false;         //!< every record read, the footer, trailing magic and CRCs valid
   bool summary_checked = false;  //!< the summary's CRC and statistics matched the data
   std::uint64_t file_bytes = 0;
   std::uint64_t bytes_used = 0;  //!< up to the end of the last complete record
@@ -137,10 +138,11 @@ struct ReadReport {
 /// message, in file order.
 class File {
  public:
-  /// Reads the data section. A file cut short reads up to its last complete record (the
-  /// report says where and why); a file that is not MCAP, or whose records contradict
-  /// themselves (bad CRC, a length past its record, a message on an unknown channel), throws
-  /// InputError "PATH: byte OFFSET: what".
+  /// Reads the data section. A file cut short reads up to its last complete record, one with
+  /// a damaged chunk (bad CRC, does not decompress: what power loss leaves when a chunk's
+  /// length reached the disk and its data did not) up to that chunk; the report says where
+  /// and why. A file that is not MCAP, or whose records contradict themselves (a field past
+  /// its record, a message on an unknown channel), throws InputError "PATH: byte OFFSET: what".
   static std::unique_ptr<File> open(const std::filesystem::path& path);
   ~File();
 
@@ -168,6 +170,9 @@ class File {
   std::vector<std::uint8_t> load_chunk(std::size_t index) const;
   std::vector<std::uint8_t> unpack_chunk(const ChunkLocation& loc,
                                          const std::vector<std::uint8_t>& packed) const;
+  /// Decompresses and CRC-checks; "" or what is wrong.
+  static std::string try_unpack(const ChunkLocation& loc, const std::vector<std::uint8_t>& packed,
+                                std::vector<std::uint8_t>& out);
 
   std::filesystem::path path_;
   int fd_ = -1;
