@@ -9,6 +9,7 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 
 #include "commands.hpp"
@@ -206,20 +207,23 @@ struct CheckArgs {
 };
 
 int run_check(const CheckArgs& a) {
-  std::vector<std::pair<std::string, std::string>> pairs;
+  std::vector<std::pair<std::string, std::string>> pairs;  // image files, or
+  std::optional<recording::EurocRecording> rec;            // a recording's frames (MCAP too)
+  std::vector<std::size_t> frames;
   std::string calibration = a.calibration;
   if (!a.recording.empty()) {
-    const recording::EurocRecording rec = recording::read_euroc(a.recording);
+    rec.emplace(read_recording_reporting(a.recording));
     if (calibration.empty()) calibration = a.recording;
-    const std::size_t n = std::min(rec.cams[0].frames.size(), rec.cams[1].frames.size());
-    for (std::size_t i = 0; i < n; i += static_cast<std::size_t>(a.every))
-      pairs.emplace_back(rec.cams[0].image_path(rec.cams[0].frames[i]).string(),
-                         rec.cams[1].image_path(rec.cams[1].frames[i]).string());
+    const std::size_t n = std::min(rec->cams[0].frames.size(), rec->cams[1].frames.size());
+    for (std::size_t i = 0; i < n; i += static_cast<std::size_t>(a.every)) frames.push_back(i);
   } else {
     pairs = resolve(a.images);
   }
   if (calibration.empty()) throw InputError("give --calibration FILE (or a --recording)");
-  const RigCalibration rig = recording::read_rig_calibration(calibration);
+  // An MCAP recording's calibration is inside it; a folder or file is read as before.
+  const RigCalibration rig = rec && rec->store && calibration == a.recording
+                                 ? rec->rig()
+                                 : recording::read_rig_calibration(calibration);
   std::unique_ptr<dsp::Rectifier> rect;
   try {
     rect = std::make_unique<dsp::Rectifier>(rig);
@@ -227,15 +231,23 @@ int run_check(const CheckArgs& a) {
     throw_input_error(calibration, 0, e.what());
   }
   dsp::VerticalDisparity all;
-  for (const auto& [l_path, r_path] : pairs) {
-    const Image l = recording::load_image_gray(l_path, rig.cams[0].width_px, rig.cams[0].height_px);
-    const Image r = recording::load_image_gray(r_path, rig.cams[1].width_px, rig.cams[1].height_px);
+  const std::size_t count = rec ? frames.size() : pairs.size();
+  for (std::size_t k = 0; k < count; ++k) {
+    Image l;
+    Image r;
+    if (rec) {
+      l = recording::load_frame_gray(*rec, 0, rec->cams[0].frames[frames[k]]);
+      r = recording::load_frame_gray(*rec, 1, rec->cams[1].frames[frames[k]]);
+    } else {
+      l = recording::load_image_gray(pairs[k].first, rig.cams[0].width_px, rig.cams[0].height_px);
+      r = recording::load_image_gray(pairs[k].second, rig.cams[1].width_px, rig.cams[1].height_px);
+    }
     all.add(dsp::vertical_disparity_of_features(*rect, dsp::wrap_gray(l), dsp::wrap_gray(r)));
   }
   const bool pass = a.max_mean_px <= 0.0 || (all.count > 0 && all.mean_px <= a.max_mean_px);
   if (a.json) {
     std::cout << nlohmann::json{{"calibration", calibration},
-                                {"pairs", pairs.size()},
+                                {"pairs", count},
                                 {"matches", all.count},
                                 {"mean_px", all.mean_px},
                                 {"median_px", all.median_px},
@@ -247,7 +259,7 @@ int run_check(const CheckArgs& a) {
     std::printf(
         "wallar calibrate rectify-check: %zu pairs, %zu matched features; rectified rows differ "
         "by %.3f px on average (median %.3f, max %.3f)\n",
-        pairs.size(), all.count, all.mean_px, all.median_px, all.max_px);
+        count, all.count, all.mean_px, all.median_px, all.max_px);
   }
   if (!pass) {
     std::fprintf(stderr, "wallar: error: mean row difference %.3f px exceeds --max-mean-px %.3f\n",
@@ -293,7 +305,8 @@ void add_calibrate_stereo_commands(CLI::App& calibrate, std::function<int()>& ru
   check->add_option("--calibration", c->calibration,
                     "EuRoC folder, Kalibr camchain or OpenCV stereo YAML (default: the "
                     "recording's own sensor.yaml)");
-  auto* rec = check->add_option("--recording", c->recording, "EuRoC recording to take pairs from");
+  auto* rec = check->add_option("--recording", c->recording,
+                                "Recording (EuRoC folder or .mcap) to take pairs from");
   check->add_option("--every", c->every, "Use every Nth pair of the recording")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
