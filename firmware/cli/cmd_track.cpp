@@ -29,6 +29,7 @@
 #include "wallar/drivers/recording/tum_trajectory.hpp"
 #include "wallar/eval/output.hpp"
 #include "wallar/firmware/board.hpp"
+#include "wallar/firmware/foxglove_messages.hpp"
 #include "wallar/firmware/offline.hpp"
 #include "wallar/firmware/report.hpp"
 
@@ -40,6 +41,7 @@ struct TrackArgs {
   std::string out;
   std::string map;
   std::string walls;
+  std::string mcap;
   bool eval = false;
   bool gravity_aligned = false;
   bool lockstep = false;
@@ -47,6 +49,32 @@ struct TrackArgs {
   bool json = false;
   std::string board;
 };
+
+// The recording's streams and the run's outputs in one MCAP file, for Foxglove: /pose and /tf
+// (world -> body) per frame, the final map (/map) and surfaces (/walls) at the last frame.
+void write_run_mcap(const std::string& path, const recording::EurocRecording& rec,
+                    const firmware::RunOutputs& o) {
+  recording::McapRecordingWriter w(path, rec.rig(), {}, !rec.ground_truth.empty());
+  recording::write_streams(rec, w);
+  namespace fg = firmware::foxglove;
+  auto channel = [&w](const fg::Schema& s, const char* topic) {
+    return w.add_json_channel(s.name, s.json_schema, topic);
+  };
+  const std::uint16_t pose = channel(fg::pose_in_frame_schema(), "/pose");
+  const std::uint16_t tf = channel(fg::frame_transform_schema(), "/tf");
+  const std::uint16_t map = channel(fg::point_cloud_schema(), "/map");
+  const std::uint16_t walls = channel(fg::scene_update_schema(), "/walls");
+  for (const StampedPose& p : o.poses) {
+    w.write_json(pose, p.t_ns, fg::pose_in_frame(p.t_ns, p.T_world_body));
+    w.write_json(tf, p.t_ns, fg::frame_transform(p.t_ns, p.T_world_body, "body"));
+  }
+  const TimeNs t_end = o.poses.empty() ? 0 : o.poses.back().t_ns;
+  const std::vector<Wall> none;
+  const std::vector<Wall>& surfaces = o.room ? o.room->model.walls : none;
+  w.write_json(map, t_end, fg::point_cloud(t_end, o.map, o.sigma_m, surfaces));
+  w.write_json(walls, t_end, fg::scene_update(t_end, surfaces));
+  w.close();
+}
 
 int run_track(const TrackArgs& a) {
   const recording::EurocRecording rec = read_recording_reporting(a.recording);
@@ -71,6 +99,7 @@ int run_track(const TrackArgs& a) {
                                         : "world: the first body pose";
   if (!a.out.empty()) eval::write_file_atomically(a.out, recording::format_tum(o.poses));
   if (!a.map.empty()) cloud::write_ply_map(a.map, o.map, o.sigma_m);
+  if (!a.mcap.empty()) write_run_mcap(a.mcap, rec, o);
   if (!a.walls.empty()) {
     nlohmann::json walls = firmware::to_json(o.room ? *o.room : dsp::RoomResult{});
     walls["mode"] = firmware::to_string(report.room_gravity);
@@ -220,6 +249,9 @@ void add_track_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--map", args->map, "sparse map as PLY (x y z sigma observations), world frame");
   cmd->add_option("--walls", args->walls,
                   "the reconstruction's final surfaces (wallar walls JSON schema), world frame");
+  cmd->add_option("--mcap", args->mcap,
+                  "the recording and the run in one MCAP file for Foxglove: its streams, /pose, "
+                  "/tf, the final /map (foxglove.PointCloud) and /walls (foxglove.SceneUpdate)");
   cmd->add_flag("--eval", args->eval,
                 "compare with the recording's ground truth (ATE, RPE, drift)");
   cmd->add_flag("--gravity-aligned", args->gravity_aligned,

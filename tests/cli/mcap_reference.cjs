@@ -64,8 +64,12 @@ async function main() {
   const counts = {};
   const last = {};
   const required = {};
+  const schemaNames = {};
+  const pointClouds = {};
+  const scenes = {};
   for (const ch of reader.channelsById.values()) {
     const schema = reader.schemasById.get(ch.schemaId);
+    schemaNames[ch.topic] = schema?.name;
     if (!schema || schema.encoding !== "jsonschema") fail(`${ch.topic}: no JSON schema`);
     required[ch.topic] = JSON.parse(new TextDecoder().decode(schema.data)).required ?? [];
     counts[ch.topic] = 0;
@@ -81,8 +85,27 @@ async function main() {
     for (const key of required[topic]) {
       if (!(key in msg)) fail(`${topic} message at ${m.logTime} lacks '${key}'`);
     }
-    const stamp = BigInt(msg.timestamp.sec) * 1000000000n + BigInt(msg.timestamp.nsec);
-    if (stamp !== m.logTime) fail(`${topic}: timestamp ${stamp} != log time ${m.logTime}`);
+    // A message's own time is its log time (SceneUpdate carries it on each entity).
+    for (const ts of [msg.timestamp, ...(msg.entities ?? []).map((e) => e.timestamp)]) {
+      if (ts === undefined) continue;
+      const stamp = BigInt(ts.sec) * 1000000000n + BigInt(ts.nsec);
+      if (stamp !== m.logTime) fail(`${topic}: timestamp ${stamp} != log time ${m.logTime}`);
+    }
+    if (schemaNames[topic] === "foxglove.PointCloud") {
+      const bytes = Buffer.from(msg.data, "base64").length;
+      if (bytes % msg.point_stride !== 0 || msg.fields.length === 0) {
+        fail(`${topic}: ${bytes} bytes of points is not a whole number of ${msg.point_stride}`);
+      }
+      pointClouds[topic] = bytes / msg.point_stride;
+    }
+    if (schemaNames[topic] === "foxglove.SceneUpdate") {
+      for (const e of msg.entities) {
+        for (const t of e.triangles) {
+          if (t.points.length === 0 || t.points.length % 3 !== 0) fail(`${e.id}: not triangles`);
+        }
+      }
+      scenes[topic] = msg.entities.map((e) => e.id);
+    }
     counts[topic] += 1;
     total += 1;
   }
@@ -120,6 +143,8 @@ async function main() {
       chunks: reader.chunkIndexes.length,
       metadata,
       counts,
+      points: pointClouds,
+      entities: scenes,
       library: reader.header.library,
     }),
   );

@@ -799,6 +799,20 @@ PY
   diff -r "$rec/mav0/cam1/data" "$tmp/back/mav0/cam1/data" >/dev/null || fail "PNGs differ"
   run convert "$rec" "$tmp/still.mcap"; expect_rc 2; one_err_line; expect_err "already exists"
   run convert "$rec" "$tmp/x.bin"; expect_rc 2; one_err_line; expect_err "name it NAME.mcap"
+  # A run for Foxglove: the streams plus /pose and /tf a frame, the final /map and /walls; the
+  # reference reads the point cloud's points and the scene's surfaces that the run reports.
+  run track "$rec" --lockstep --mcap "$tmp/run.mcap" --json; expect_rc 0
+  frames=$(json "d['frames']"); points=$(json "d['map_points']"); surfaces=$(json "d['surfaces']")
+  ref "$tmp/run.mcap" /cam0=40 /imu0=491 /pose=$frames /tf=$frames /map=1 /walls=1 >"$tmp/ref" ||
+    fail "the reference reader refused the run's file"
+  python3 - "$tmp/ref" "$points" "$surfaces" <<'PY' || fail "map or walls differ: $(cat "$tmp/ref")"
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d['points']['/map'] == int(sys.argv[2]) > 100, d['points']
+assert len(d['entities']['/walls']) == int(sys.argv[3]) >= 2, d['entities']
+PY
+  run replay "$tmp/run.mcap" --stats --fast --no-images; expect_rc 0  # outputs beside the streams
+  expect_out "cam0      40 samples"
   # The sim board recorded to MCAP: counts equal the recorder's rows.
   run record --board "$src/board/sim.yaml" --out "$tmp/rec.mcap" --fast --json; expect_rc 0
   imu_rows=$(json "d['imu_rows']"); cam_rows=$(json "d['cam_rows'][0]")

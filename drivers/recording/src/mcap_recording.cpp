@@ -356,6 +356,19 @@ void McapRecordingWriter::write_ground_truth(const GroundTruthState& g) {
   writer_->write_message(gt_channel_, t, t, bytes_of(j.dump()));
 }
 
+std::uint16_t McapRecordingWriter::add_json_channel(const std::string& schema_name,
+                                                    const std::string& json_schema,
+                                                    const std::string& topic) {
+  const std::uint16_t schema =
+      writer_->add_schema(schema_name, "jsonschema", bytes_of(json_schema));
+  return writer_->add_channel(schema, topic, "json");
+}
+
+void McapRecordingWriter::write_json(std::uint16_t channel, TimeNs t_ns, const std::string& json) {
+  const std::uint64_t t = log_time(t_ns, path_);
+  writer_->write_message(channel, t, t, bytes_of(json));
+}
+
 void McapRecordingWriter::close() { writer_->close(); }
 
 // ---- reader -----------------------------------------------------------------------------------
@@ -516,26 +529,13 @@ EurocRecording read_recording_imu(const fs::path& path) {
 
 // ---- converter --------------------------------------------------------------------------------
 
-ConvertCounts convert_recording(const EurocRecording& rec, const fs::path& out, bool to_mcap,
-                                const McapRecordingOptions& options) {
-  std::error_code ec;
-  if (!to_mcap && fs::exists(out / "mav0", ec)) {
-    throw_input_error(out.string(), 0,
-                      "already holds a recording (mav0/); refusing to overwrite it");
-  }
+namespace {
+
+// Every stream of `rec` in time order (IMU first on ties, as replay delivers them) into the
+// writer's write_imu, write_camera_png and write_ground_truth.
+template <typename Writer>
+ConvertCounts copy_streams(const EurocRecording& rec, Writer& writer) {
   ConvertCounts counts;
-  std::unique_ptr<McapRecordingWriter> mcap_writer;
-  std::unique_ptr<EurocWriter> euroc_writer;
-  RecordingWriter* writer = nullptr;
-  if (to_mcap) {
-    mcap_writer =
-        std::make_unique<McapRecordingWriter>(out, rec.rig(), options, !rec.ground_truth.empty());
-    writer = mcap_writer.get();
-  } else {
-    euroc_writer = std::make_unique<EurocWriter>(out, rec.rig());
-    writer = euroc_writer.get();
-  }
-  // All streams merged in time order (IMU first on ties, as replay delivers them).
   std::size_t i_imu = 0;
   std::size_t i_gt = 0;
   std::array<std::size_t, 2> i_cam{0, 0};
@@ -557,24 +557,45 @@ ConvertCounts convert_recording(const EurocRecording& rec, const fs::path& out, 
     if (i_gt < rec.ground_truth.size() && rec.ground_truth[i_gt].t_ns < t) which = 3;
     if (which < 0) break;
     if (which == 2) {
-      writer->write_imu(rec.imu[i_imu++]);
+      writer.write_imu(rec.imu[i_imu++]);
       ++counts.imu;
     } else if (which == 3) {
-      const GroundTruthState& g = rec.ground_truth[i_gt++];
-      if (mcap_writer) mcap_writer->write_ground_truth(g);
-      if (euroc_writer) euroc_writer->write_ground_truth(g);
+      writer.write_ground_truth(rec.ground_truth[i_gt++]);
       ++counts.ground_truth;
     } else {
-      const FrameEntry& f = rec.cams[static_cast<std::size_t>(which)]
-                                .frames[i_cam[static_cast<std::size_t>(which)]++];
-      const std::vector<std::uint8_t> png = load_frame_encoded(rec, which, f);
-      if (mcap_writer) mcap_writer->write_camera_png(which, f.t_ns, png);
-      if (euroc_writer) euroc_writer->write_camera_png(which, f.t_ns, png);
-      ++counts.frames[static_cast<std::size_t>(which)];
+      const auto c = static_cast<std::size_t>(which);
+      const FrameEntry& f = rec.cams[c].frames[i_cam[c]++];
+      writer.write_camera_png(which, f.t_ns, load_frame_encoded(rec, which, f));
+      ++counts.frames[c];
     }
   }
-  writer->close();
-  counts.bytes_written = mcap_writer ? mcap_writer->bytes_written() : euroc_writer->bytes_written();
+  return counts;
+}
+
+}  // namespace
+
+ConvertCounts write_streams(const EurocRecording& rec, McapRecordingWriter& writer) {
+  return copy_streams(rec, writer);
+}
+
+ConvertCounts convert_recording(const EurocRecording& rec, const fs::path& out, bool to_mcap,
+                                const McapRecordingOptions& options) {
+  std::error_code ec;
+  if (!to_mcap && fs::exists(out / "mav0", ec)) {
+    throw_input_error(out.string(), 0,
+                      "already holds a recording (mav0/); refusing to overwrite it");
+  }
+  if (to_mcap) {
+    McapRecordingWriter w(out, rec.rig(), options, !rec.ground_truth.empty());
+    ConvertCounts counts = copy_streams(rec, w);
+    w.close();
+    counts.bytes_written = w.bytes_written();
+    return counts;
+  }
+  EurocWriter w(out, rec.rig());
+  ConvertCounts counts = copy_streams(rec, w);
+  w.close();
+  counts.bytes_written = w.bytes_written();
   return counts;
 }
 

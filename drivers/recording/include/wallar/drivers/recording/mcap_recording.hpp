@@ -57,6 +57,11 @@ class McapRecordingWriter final : public RecordingWriter {
   /// A frame already encoded as PNG, copied byte for byte.
   void write_camera_png(int cam, TimeNs t_ns, std::span<const std::uint8_t> png);
   void write_ground_truth(const GroundTruthState& state);
+  /// Another channel of JSON messages under a JSON Schema (the firmware's outputs: Foxglove's
+  /// PoseInFrame, PointCloud, SceneUpdate, ...); its id for write_json.
+  std::uint16_t add_json_channel(const std::string& schema_name, const std::string& json_schema,
+                                 const std::string& topic);
+  void write_json(std::uint16_t channel, TimeNs t_ns, const std::string& json);
   void close() override;
 
   [[nodiscard]] std::size_t imu_written() const { return imu_; }
@@ -97,6 +102,10 @@ struct ConvertCounts {
   std::size_t ground_truth = 0;
   std::uint64_t bytes_written = 0;
 };
+
+/// Every stream of `rec` (frames as encoded, IMU, ground truth when the writer has its channel)
+/// into `writer`, in time order; the writer stays open.
+ConvertCounts write_streams(const EurocRecording& rec, McapRecordingWriter& writer);
 
 /// Writes `rec` (read by read_recording) to `out`: an MCAP file when `to_mcap`, else a EuRoC
 /// folder. Images are copied as encoded; every stream keeps its samples and times. Refuses an
