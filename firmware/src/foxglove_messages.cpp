@@ -7,6 +7,8 @@
 #include <cstring>
 #include <nlohmann/json.hpp>
 
+#include "wallar/drivers/recording/mcap_recording.hpp"
+
 namespace wallar::firmware::foxglove {
 namespace {
 
@@ -206,20 +208,8 @@ std::string point_cloud(TimeNs t_ns, const PointCloud& map, const std::vector<fl
   for (int k = 0; k < 7; ++k) {
     fields.push_back({{"name", names[k]}, {"offset", 4 * k}, {"type", kFloat32}});
   }
-  // base64 of the packed points (JSON Schema's contentEncoding, as Foxglove reads bytes).
-  static constexpr char kB64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string b64;
-  b64.reserve((data.size() + 2) / 3 * 4);
-  for (std::size_t i = 0; i < data.size(); i += 3) {
-    const std::uint32_t n = data.size() - i;
-    const std::uint32_t v = (static_cast<std::uint32_t>(data[i]) << 16) |
-                            (n > 1 ? static_cast<std::uint32_t>(data[i + 1]) << 8 : 0) |
-                            (n > 2 ? data[i + 2] : 0);
-    b64 += kB64[(v >> 18) & 63];
-    b64 += kB64[(v >> 12) & 63];
-    b64 += n > 1 ? kB64[(v >> 6) & 63] : '=';
-    b64 += n > 2 ? kB64[v & 63] : '=';
-  }
+  // base64: JSON Schema's contentEncoding, as Foxglove reads bytes.
+  const std::string b64 = recording::base64_encode(data);
   return json{{"timestamp", stamp(t_ns)}, {"frame_id", "world"}, {"pose", pose(SE3d::Identity())},
               {"point_stride", kStride},  {"fields", fields},    {"data", b64}}
       .dump();

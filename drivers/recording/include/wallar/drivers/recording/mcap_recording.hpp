@@ -27,6 +27,9 @@
 #include <filesystem>
 #include <memory>
 #include <span>
+#include <string>
+#include <string_view>
+#include <vector>
 
 #include "wallar/drivers/recording/euroc.hpp"
 #include "wallar/drivers/recording/mcap.hpp"
@@ -80,6 +83,12 @@ class McapRecordingWriter final : public RecordingWriter {
   std::size_t imu_ = 0;
   std::array<std::size_t, 2> frames_{0, 0};
 };
+
+/// base64 (RFC 4648, padded): how JSON Schema's contentEncoding carries bytes in JSON
+/// messages (images here, Foxglove's point clouds). decode: false on a character outside the
+/// alphabet or a bad length or padding.
+std::string base64_encode(std::span<const std::uint8_t> in);
+bool base64_decode(std::string_view in, std::vector<std::uint8_t>& out);
 
 /// True when `path` is a file that starts with MCAP's magic bytes.
 bool is_mcap_recording(const std::filesystem::path& path);
