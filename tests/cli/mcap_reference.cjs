@@ -3,7 +3,8 @@
 // and checks what cli.mcap asserts of wallar's files: the footer, summary and its CRC, the
 // statistics, every chunk through its chunk index and message indexes (CRCs validated), the
 // same messages from a front-to-back stream read, each topic's count, times that increase, and
-// messages that parse under their channel's JSON schema's required fields.
+// messages that parse under their channel's JSON schema's required fields, and whole camera
+// calibrations beside the images.
 //
 // usage: node mcap_reference.cjs NODE_DIR FILE TOPIC=COUNT...
 //        node mcap_reference.cjs NODE_DIR --stream FILE...
@@ -67,6 +68,7 @@ async function main() {
   const schemaNames = {};
   const pointClouds = {};
   const scenes = {};
+  const calibrations = {};
   for (const ch of reader.channelsById.values()) {
     const schema = reader.schemasById.get(ch.schemaId);
     schemaNames[ch.topic] = schema?.name;
@@ -97,6 +99,21 @@ async function main() {
         fail(`${topic}: ${bytes} bytes of points is not a whole number of ${msg.point_stride}`);
       }
       pointClouds[topic] = bytes / msg.point_stride;
+    }
+    if (schemaNames[topic] === "foxglove.CameraCalibration") {
+      // Beside its image topic, in its frame, with whole matrices of finite numbers.
+      const cam = topic.replace(/\/calibration$/, "");
+      if (cam === topic || msg.frame_id !== cam.slice(1)) fail(`${topic}: frame_id ${msg.frame_id}`);
+      const sizes = { K: 9, R: 9, P: 12 };
+      for (const [key, n] of Object.entries(sizes)) {
+        if (msg[key].length !== n || !msg[key].every(Number.isFinite)) fail(`${topic}: ${key}`);
+      }
+      const d = { plumb_bob: 5, kannala_brandt: 4 }[msg.distortion_model];
+      if (d === undefined || msg.D.length !== d) fail(`${topic}: D for ${msg.distortion_model}`);
+      if (!(msg.width > 0 && msg.height > 0 && msg.K[0] > 0 && msg.K[8] === 1)) {
+        fail(`${topic}: ${msg.width}x${msg.height}, K ${msg.K}`);
+      }
+      calibrations[topic] = { width: msg.width, height: msg.height, fx: msg.K[0], D: msg.D };
     }
     if (schemaNames[topic] === "foxglove.SceneUpdate") {
       for (const e of msg.entities) {
@@ -145,6 +162,7 @@ async function main() {
       counts,
       points: pointClouds,
       entities: scenes,
+      calibrations,
       library: reader.header.library,
     }),
   );

@@ -776,8 +776,20 @@ mcap)
     fail "no Node.js or no tools/node/node_modules (run tools/setup)"
   run convert "$rec" "$tmp/still.mcap" --json; expect_rc 0
   [ "$(json "d['frames']")" = "[40, 40]" ] || fail "converted frames"
-  ref "$tmp/still.mcap" /cam0=40 /cam1=40 /imu0=491 /ground_truth=50 >"$tmp/ref" ||
-    fail "the reference reader refused the converted file"
+  ref "$tmp/still.mcap" /cam0=40 /cam1=40 /imu0=491 /ground_truth=50 /cam0/calibration=40 \
+    /cam1/calibration=40 >"$tmp/ref" || fail "the reference reader refused the converted file"
+  # Each camera's calibration beside its images: the folder's sensor.yaml as Foxglove reads it.
+  python3 - "$tmp/ref" "$rec" <<'PY' || fail "calibration channels: $(cat "$tmp/ref")"
+import json, re, sys
+got = json.load(open(sys.argv[1]))['calibrations']
+for cam in ('cam0', 'cam1'):
+    text = open(f'{sys.argv[2]}/mav0/{cam}/sensor.yaml').read()
+    k = [float(v) for v in re.search(r'intrinsics: *\[([^\]]*)\]', text).group(1).split(',')]
+    d = [float(v) for v in re.search(r'distortion_coefficients: *\[([^\]]*)\]', text).group(1).split(',')]
+    res = [int(v) for v in re.search(r'resolution: *\[([^\]]*)\]', text).group(1).split(',')]
+    c = got[f'/{cam}/calibration']
+    assert [c['width'], c['height']] == res and c['fx'] == k[0] and c['D'] == d + [0.0], (cam, c)
+PY
   # Under the cross emulator (10-20x slower) the container's checks are the same on fewer
   # inputs: 5 cuts, no lz4 copy, no rectify-check (the unit tests run every Mcap.* there too).
   emulated=${WALLAR_EMULATOR:+1}

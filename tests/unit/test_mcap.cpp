@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <string>
 #include <vector>
@@ -273,6 +275,70 @@ TEST(McapRecording, EverySampleFrameAndCalibrationValueComesBackExactly) {
   EXPECT_TRUE(got.ground_truth[0].T_world_body.linear().isApprox(R, 1e-15));
   EXPECT_EQ(got.ground_truth[0].T_world_body.translation(), Eigen::Vector3d(1.5, -2.0, 0.25));
   EXPECT_EQ(got.ground_truth[0].vel_world_m_s, Eigen::Vector3d(0.1, 0.2, 0.3));
+}
+
+// Foxglove's CameraCalibration beside each image: radial-tangential as plumb_bob (k3 = 0),
+// equidistant as kannala_brandt, K from the intrinsics, R identity and P = [K | 0] (raw images).
+TEST(McapRecording, EachImageHasItsCameraCalibrationBesideIt) {
+  TempDir dir;
+  const fs::path p = dir.path() / "cal.mcap";
+  RigCalibration rig = small_rig();
+  rig.cams[1].distortion_model = "equidistant";
+  rig.cams[1].distortion = {0.1, -0.02, 0.003, -0.0004};
+  rig.cams[1].fx = 11.5;
+  {
+    recording::McapRecordingWriter w(p, rig);
+    const std::vector<std::uint8_t> png = {1, 2, 3};
+    for (TimeNs t_ns : {kNsPerS, 2 * kNsPerS}) {
+      w.write_camera_png(0, t_ns, png);
+      w.write_camera_png(1, t_ns, png);
+    }
+    w.close();
+  }
+  const auto f = mcap::File::open(p);
+  std::map<std::uint16_t, std::string> topic;
+  for (const auto& [id, ch] : f->channels()) {
+    topic[id] = ch.topic;
+    if (ch.topic.ends_with("/calibration")) {
+      EXPECT_EQ(f->schemas().at(ch.schema_id).name, "foxglove.CameraCalibration");
+    }
+  }
+  std::map<std::string, std::vector<nlohmann::json>> got;
+  for (const mcap::MessageRef& m : f->messages()) {
+    const std::vector<std::uint8_t> b = f->read_message(m);
+    nlohmann::json j = nlohmann::json::parse(b.begin(), b.end());
+    if (topic[m.channel_id].ends_with("/calibration")) {
+      const TimeNs t_ns =
+          j["timestamp"]["sec"].get<TimeNs>() * kNsPerS + j["timestamp"]["nsec"].get<TimeNs>();
+      EXPECT_EQ(static_cast<std::uint64_t>(t_ns), m.log_time_ns);
+    }
+    got[topic[m.channel_id]].push_back(std::move(j));
+  }
+  ASSERT_EQ(got["/cam0/calibration"].size(), 2u);
+  ASSERT_EQ(got["/cam1/calibration"].size(), 2u);
+  const nlohmann::json& c0 = got["/cam0/calibration"][0];
+  EXPECT_EQ(c0["frame_id"], "cam0");
+  EXPECT_EQ(c0["frame_id"], got["/cam0"][0]["frame_id"]);
+  EXPECT_EQ(c0["width"], 8);
+  EXPECT_EQ(c0["height"], 6);
+  EXPECT_EQ(c0["distortion_model"], "plumb_bob");
+  EXPECT_EQ(c0["D"].get<std::vector<double>>(),
+            (std::vector<double>{0.01, -0.002, 0.0001, 0.0, 0.0}));
+  EXPECT_EQ(c0["K"].get<std::vector<double>>(),
+            (std::vector<double>{10.0, 0.0, 4.0, 0.0, 10.0, 3.0, 0.0, 0.0, 1.0}));
+  EXPECT_EQ(c0["R"].get<std::vector<double>>(),
+            (std::vector<double>{1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0}));
+  EXPECT_EQ(c0["P"].get<std::vector<double>>(),
+            (std::vector<double>{10.0, 0.0, 4.0, 0.0, 0.0, 10.0, 3.0, 0.0, 0.0, 0.0, 1.0, 0.0}));
+  const nlohmann::json& c1 = got["/cam1/calibration"][1];
+  EXPECT_EQ(c1["frame_id"], "cam1");
+  EXPECT_EQ(c1["distortion_model"], "kannala_brandt");
+  EXPECT_EQ(c1["D"].get<std::vector<double>>(), rig.cams[1].distortion);
+  EXPECT_EQ(c1["K"][0], 11.5);
+  // The reader takes the calibration from the file's metadata and passes over these channels.
+  const recording::EurocRecording r = recording::read_recording(p);
+  EXPECT_EQ(r.cams[1].calib.distortion_model, "equidistant");
+  EXPECT_EQ(r.cams[0].frames.size(), 2u);
 }
 
 TEST(McapRecording, TheBundledRecordingConvertsToMcapAndBackUnchanged) {

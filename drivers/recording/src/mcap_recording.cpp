@@ -56,6 +56,61 @@ std::string compressed_image_schema() {
   return s.dump();
 }
 
+// Foxglove's CameraCalibration (its published JSON Schema, with the fields it lists as required).
+std::string camera_calibration_schema() {
+  auto numbers = [](const char* description, int n) {
+    json a = {{"type", "array"}, {"items", {{"type", "number"}}}, {"description", description}};
+    if (n > 0) {
+      a["minItems"] = n;
+      a["maxItems"] = n;
+    }
+    return a;
+  };
+  const json s = {
+      {"title", "foxglove.CameraCalibration"},
+      {"description", "Camera calibration parameters"},
+      {"type", "object"},
+      {"properties",
+       {{"timestamp", time_schema()},
+        {"frame_id", {{"type", "string"}, {"description", "Frame of reference for the camera"}}},
+        {"width", {{"type", "integer"}, {"minimum", 0}, {"description", "Image width"}}},
+        {"height", {{"type", "integer"}, {"minimum", 0}, {"description", "Image height"}}},
+        {"distortion_model",
+         {{"type", "string"},
+          {"description", "Name of distortion model: plumb_bob or kannala_brandt"}}},
+        {"D", numbers("Distortion parameters", 0)},
+        {"K", numbers("Intrinsic camera matrix (3x3 row-major matrix)", 9)},
+        {"R", numbers("Rectification matrix (3x3 row-major matrix)", 9)},
+        {"P", numbers("Projection/camera matrix (3x4 row-major matrix)", 12)}}},
+      {"required",
+       {"timestamp", "frame_id", "width", "height", "distortion_model", "D", "K", "R", "P"}}};
+  return s.dump();
+}
+
+// One camera's calibration as Foxglove's CameraCalibration, without its timestamp: the members
+// after it, for `{"timestamp":...,` + this. The images are the raw ones, so R is the identity
+// and P is [K | 0] (Foxglove undistorts with K and D, then projects with P); radial-tangential is
+// OpenCV's plumb_bob (k1 k2 p1 p2 k3, k3 zero when absent), equidistant its fisheye model,
+// Foxglove's kannala_brandt (k1..k4).
+std::string camera_calibration_members(const CameraCalibration& c, const std::string& frame_id) {
+  std::vector<double> d = c.distortion;
+  std::string model = "kannala_brandt";
+  if (c.distortion_model == "radial-tangential") {
+    model = "plumb_bob";
+    d.resize(5, 0.0);
+  }
+  const json j = {{"frame_id", frame_id},
+                  {"width", c.width_px},
+                  {"height", c.height_px},
+                  {"distortion_model", model},
+                  {"D", d},
+                  {"K", {c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0}},
+                  {"R", {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0}},
+                  {"P", {c.fx, 0.0, c.cx, 0.0, 0.0, c.fy, c.cy, 0.0, 0.0, 0.0, 1.0, 0.0}}};
+  std::string text = j.dump();
+  return text.substr(1);  // without the opening brace
+}
+
 std::string imu_schema() {
   const json s = {
       {"title", "wallar.Imu"},
@@ -299,8 +354,14 @@ McapRecordingWriter::McapRecordingWriter(const fs::path& path, const RigCalibrat
   writer_->add_metadata(kRigMetadata, rig_files);
   const std::uint16_t image = writer_->add_schema("foxglove.CompressedImage", "jsonschema",
                                                   bytes_of(compressed_image_schema()));
+  const std::uint16_t calibration = writer_->add_schema("foxglove.CameraCalibration", "jsonschema",
+                                                        bytes_of(camera_calibration_schema()));
   for (int i = 0; i < 2; ++i) {
-    cam_channel_[static_cast<std::size_t>(i)] = writer_->add_channel(image, kCamTopic[i], "json");
+    const auto k = static_cast<std::size_t>(i);
+    cam_channel_[k] = writer_->add_channel(image, kCamTopic[i], "json");
+    calibration_channel_[k] =
+        writer_->add_channel(calibration, std::string(kCamTopic[i]) + "/calibration", "json");
+    calibration_members_[k] = camera_calibration_members(rig.cams[k], "cam" + std::to_string(i));
   }
   const std::uint16_t imu = writer_->add_schema("wallar.Imu", "jsonschema", bytes_of(imu_schema()));
   imu_channel_ = writer_->add_channel(imu, kImuTopic, "json");
@@ -327,13 +388,19 @@ void McapRecordingWriter::write_imu(const ImuSample& s) {
 
 void McapRecordingWriter::write_camera_png(int cam, TimeNs t_ns,
                                            std::span<const std::uint8_t> png) {
+  const auto k = static_cast<std::size_t>(cam);
   const json j = {{"timestamp", stamp(t_ns)},
                   {"frame_id", "cam" + std::to_string(cam)},
                   {"data", base64_encode(png)},
                   {"format", "png"}};
   const std::uint64_t t = log_time(t_ns, path_);
-  writer_->write_message(cam_channel_[static_cast<std::size_t>(cam)], t, t, bytes_of(j.dump()));
-  ++frames_[static_cast<std::size_t>(cam)];
+  writer_->write_message(cam_channel_[k], t, t, bytes_of(j.dump()));
+  // Its calibration beside each image, as Foxglove's image and 3-D panels pair them (a seek
+  // anywhere in the file finds one at the image's time).
+  const std::string calibration =
+      "{\"timestamp\":" + stamp(t_ns).dump() + "," + calibration_members_[k];
+  writer_->write_message(calibration_channel_[k], t, t, bytes_of(calibration));
+  ++frames_[k];
 }
 
 void McapRecordingWriter::write_camera(int cam, const CameraFrame& frame) {

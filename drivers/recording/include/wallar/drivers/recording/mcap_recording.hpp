@@ -8,6 +8,11 @@
 /// where Foxglove publishes one, so Foxglove Studio and the mcap CLI open the file as it is:
 ///   /cam0, /cam1     foxglove.CompressedImage   timestamp, frame_id "cam0"/"cam1",
 ///                                               data (the PNG, base64), format "png"
+///   /cam0/calibration, /cam1/calibration
+///                    foxglove.CameraCalibration one beside each image, at its time: width,
+///                                               height, distortion_model (plumb_bob, or
+///                                               kannala_brandt for equidistant), D, K, R
+///                                               (identity: raw images), P ([K | 0])
 ///   /imu0            wallar.Imu                 timestamp, frame_id "imu0", angular_velocity
 ///                                               [rad/s], linear_acceleration [m/s^2] ({x,y,z})
 ///   /ground_truth    wallar.GroundTruthState    (optional) timestamp, frame_id "world",
@@ -23,6 +28,7 @@
 /// immutable (its FrameStore may be read from any thread).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -77,6 +83,8 @@ class McapRecordingWriter final : public RecordingWriter {
   std::filesystem::path path_;
   std::unique_ptr<mcap::Writer> writer_;
   std::array<std::uint16_t, 2> cam_channel_{};
+  std::array<std::uint16_t, 2> calibration_channel_{};  //!< /camN/calibration
+  std::array<std::string, 2> calibration_members_;      //!< its JSON after the timestamp
   std::uint16_t imu_channel_ = 0;
   std::uint16_t gt_channel_ = 0;
   bool with_ground_truth_ = false;
