@@ -143,6 +143,21 @@ TEST(Mcap, CutAtTwentyRandomBytesReadsUpToTheLastCompleteChunkAndSaysSo) {
   }
 }
 
+// A disk that is full from the first byte: the writer says so naming the file, and leaves no
+// file descriptor open (its constructor throws, so no destructor closes it).
+TEST(Mcap, AFullDiskIsAnErrorNamingTheFileAndLeaksNoDescriptor) {
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  auto open_fds = [] {
+    return std::distance(fs::directory_iterator("/proc/self/fd"), fs::directory_iterator{});
+  };
+  const auto before = open_fds();
+  for (int i = 0; i < 3; ++i) {
+    const std::string err = input_error_of([] { mcap::Writer w("/dev/full", {}); });
+    EXPECT_NE(err.find("/dev/full"), std::string::npos) << err;
+  }
+  EXPECT_EQ(open_fds(), before);
+}
+
 TEST(Mcap, ADamagedChunkEndsTheReadThereAndIsNamed) {
   TempDir dir;
   const fs::path p = dir.path() / "d.mcap";

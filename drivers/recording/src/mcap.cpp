@@ -272,7 +272,18 @@ Writer::Writer(const std::filesystem::path& path, const WriterOptions& options)
   header.str(options_.profile);
   header.str(options_.library);
   head.record(kHeader, header);
-  write_bytes(head.b);
+  try {
+    write_bytes(head.b);
+  } catch (const InputError&) {
+    release();  // no destructor runs after a throwing constructor
+    throw;
+  }
+}
+
+void Writer::release() noexcept {
+  closed_ = true;
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = -1;
 }
 
 Writer::~Writer() {
@@ -448,17 +459,13 @@ void Writer::flush_chunk() {
 void Writer::close() {
   if (closed_) return;
   if (failed_) {
-    closed_ = true;
-    ::close(fd_);
-    fd_ = -1;
+    release();
     return;
   }
   try {
     flush_chunk();
   } catch (const InputError&) {
-    closed_ = true;
-    ::close(fd_);
-    fd_ = -1;
+    release();
     throw;
   }
   closed_ = true;
@@ -520,15 +527,13 @@ void Writer::close() {
   try {
     write_all(fd_, tail.b.data(), tail.b.size(), path_.string());
   } catch (const InputError&) {
-    ::close(fd_);
-    fd_ = -1;
+    release();
     throw;
   }
   offset_ += tail.b.size();
   const bool synced = ::fsync(fd_) == 0;
   const int saved = errno;
-  ::close(fd_);
-  fd_ = -1;
+  release();
   if (!synced) throw_input_error(path_.string(), 0, std::string("fsync: ") + std::strerror(saved));
 }
 

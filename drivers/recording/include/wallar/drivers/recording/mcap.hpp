@@ -75,6 +75,8 @@ class Writer {
   void write_bytes(const std::vector<std::uint8_t>& bytes);
   void flush_chunk();
   void check_open() const;
+  /// Marks the writer closed and closes the file descriptor (every way out of close()).
+  void release() noexcept;
 
   std::filesystem::path path_;
   WriterOptions options_;
