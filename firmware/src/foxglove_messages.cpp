@@ -7,24 +7,21 @@
 #include <cstring>
 #include <nlohmann/json.hpp>
 
+#include "wallar/drivers/recording/foxglove_json.hpp"
 #include "wallar/drivers/recording/mcap_recording.hpp"
 
 namespace wallar::firmware::foxglove {
 namespace {
 
 using nlohmann::json;
+namespace fj = recording::foxglove_json;
 
 constexpr double kOnSurfaceM = 0.1;  // a map point this near a surface's plane takes its colour
 constexpr int kFloat32 = 7;          // foxglove.NumericType FLOAT32
 
-json stamp(TimeNs t_ns) { return {{"sec", t_ns / kNsPerS}, {"nsec", t_ns % kNsPerS}}; }
-json vec3(const Eigen::Vector3d& v) { return {{"x", v.x()}, {"y", v.y()}, {"z", v.z()}}; }
-json quat(const Eigen::Quaterniond& q) {
-  return {{"x", q.x()}, {"y", q.y()}, {"z", q.z()}, {"w", q.w()}};
-}
 json pose(const SE3d& T) {
-  return {{"position", vec3(T.translation())},
-          {"orientation", quat(Eigen::Quaterniond(T.linear()).normalized())}};
+  return {{"position", fj::vector3(T.translation())},
+          {"orientation", fj::quaternion(Eigen::Quaterniond(T.linear()).normalized())}};
 }
 json colour(std::uint32_t id, double alpha) {
   const auto c = surface_colour_rgb(id);
@@ -170,16 +167,16 @@ Schema scene_update_schema() {
 }
 
 std::string pose_in_frame(TimeNs t_ns, const SE3d& T_world_body) {
-  return json{{"timestamp", stamp(t_ns)}, {"frame_id", "world"}, {"pose", pose(T_world_body)}}
+  return json{{"timestamp", fj::time(t_ns)}, {"frame_id", "world"}, {"pose", pose(T_world_body)}}
       .dump();
 }
 
 std::string frame_transform(TimeNs t_ns, const SE3d& T_world_child, const std::string& child) {
-  return json{{"timestamp", stamp(t_ns)},
+  return json{{"timestamp", fj::time(t_ns)},
               {"parent_frame_id", "world"},
               {"child_frame_id", child},
-              {"translation", vec3(T_world_child.translation())},
-              {"rotation", quat(Eigen::Quaterniond(T_world_child.linear()).normalized())}}
+              {"translation", fj::vector3(T_world_child.translation())},
+              {"rotation", fj::quaternion(Eigen::Quaterniond(T_world_child.linear()).normalized())}}
       .dump();
 }
 
@@ -210,8 +207,9 @@ std::string point_cloud(TimeNs t_ns, const PointCloud& map, const std::vector<fl
   }
   // base64: JSON Schema's contentEncoding, as Foxglove reads bytes.
   const std::string b64 = recording::base64_encode(data);
-  return json{{"timestamp", stamp(t_ns)}, {"frame_id", "world"}, {"pose", pose(SE3d::Identity())},
-              {"point_stride", kStride},  {"fields", fields},    {"data", b64}}
+  return json{
+      {"timestamp", fj::time(t_ns)}, {"frame_id", "world"}, {"pose", pose(SE3d::Identity())},
+      {"point_stride", kStride},     {"fields", fields},    {"data", b64}}
       .dump();
 }
 
@@ -222,12 +220,13 @@ std::string scene_update(TimeNs t_ns, const std::vector<Wall>& walls) {
     const std::vector<Eigen::Vector3d> c = corners(w);
     json tri_points = json::array();
     for (std::size_t i = 1; i + 1 < c.size(); ++i) {  // the convex extent as a fan
-      for (const std::size_t k : {std::size_t{0}, i, i + 1}) tri_points.push_back(vec3(c[k]));
+      for (const std::size_t k : {std::size_t{0}, i, i + 1})
+        tri_points.push_back(fj::vector3(c[k]));
     }
     json outline = json::array();
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
     for (const Eigen::Vector3d& p : c) {
-      outline.push_back(vec3(p));
+      outline.push_back(fj::vector3(p));
       centre += p;
     }
     if (!c.empty()) centre /= static_cast<double>(c.size());
@@ -235,7 +234,7 @@ std::string scene_update(TimeNs t_ns, const std::vector<Wall>& walls) {
     label.translation() = centre + 0.05 * w.plane.n;  // just in front of the surface
     const std::string kind(to_string(w.kind));
     entities.push_back(
-        {{"timestamp", stamp(t_ns)},
+        {{"timestamp", fj::time(t_ns)},
          {"frame_id", "world"},
          {"id", "surface-" + std::to_string(w.id)},
          {"lifetime", {{"sec", 0}, {"nsec", 0}}},

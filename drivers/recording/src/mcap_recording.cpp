@@ -11,11 +11,13 @@
 #include <string_view>
 
 #include "wallar/core/error.hpp"
+#include "wallar/drivers/recording/foxglove_json.hpp"
 
 namespace wallar::recording {
 namespace {
 
 namespace fs = std::filesystem;
+namespace fj = foxglove_json;
 using nlohmann::json;
 
 constexpr const char* kRigMetadata = "wallar.rig";
@@ -154,10 +156,6 @@ std::string ground_truth_schema() {
 std::span<const std::uint8_t> bytes_of(const std::string& s) {
   return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()};
 }
-
-json stamp(TimeNs t_ns) { return {{"sec", t_ns / kNsPerS}, {"nsec", t_ns % kNsPerS}}; }
-
-json vec3(const Eigen::Vector3d& v) { return {{"x", v.x()}, {"y", v.y()}, {"z", v.z()}}; }
 
 std::uint64_t log_time(TimeNs t_ns, const fs::path& path) {
   if (t_ns < 0) {
@@ -375,11 +373,11 @@ McapRecordingWriter::McapRecordingWriter(const fs::path& path, const RigCalibrat
 McapRecordingWriter::~McapRecordingWriter() = default;  // the mcap::Writer closes the file
 
 void McapRecordingWriter::write_imu(const ImuSample& s) {
-  json j = {{"timestamp", stamp(s.t_ns)},
+  json j = {{"timestamp", fj::time(s.t_ns)},
             {"frame_id", "imu0"},
-            {"angular_velocity", vec3(s.gyro_rad_s)},
-            {"linear_acceleration", vec3(s.accel_m_s2)}};
-  if (s.mag_uT) j["magnetic_field"] = vec3(*s.mag_uT);
+            {"angular_velocity", fj::vector3(s.gyro_rad_s)},
+            {"linear_acceleration", fj::vector3(s.accel_m_s2)}};
+  if (s.mag_uT) j["magnetic_field"] = fj::vector3(*s.mag_uT);
   if (s.temperature_c) j["temperature"] = *s.temperature_c;
   const std::uint64_t t = log_time(s.t_ns, path_);
   writer_->write_message(imu_channel_, t, t, bytes_of(j.dump()));
@@ -389,7 +387,7 @@ void McapRecordingWriter::write_imu(const ImuSample& s) {
 void McapRecordingWriter::write_camera_png(int cam, TimeNs t_ns,
                                            std::span<const std::uint8_t> png) {
   const auto k = static_cast<std::size_t>(cam);
-  const json j = {{"timestamp", stamp(t_ns)},
+  const json j = {{"timestamp", fj::time(t_ns)},
                   {"frame_id", "cam" + std::to_string(cam)},
                   {"data", base64_encode(png)},
                   {"format", "png"}};
@@ -398,7 +396,7 @@ void McapRecordingWriter::write_camera_png(int cam, TimeNs t_ns,
   // Its calibration beside each image, as Foxglove's image and 3-D panels pair them (a seek
   // anywhere in the file finds one at the image's time).
   const std::string calibration =
-      "{\"timestamp\":" + stamp(t_ns).dump() + "," + calibration_members_[k];
+      "{\"timestamp\":" + fj::time(t_ns).dump() + "," + calibration_members_[k];
   writer_->write_message(calibration_channel_[k], t, t, bytes_of(calibration));
   ++frames_[k];
 }
@@ -412,13 +410,13 @@ void McapRecordingWriter::write_ground_truth(const GroundTruthState& g) {
     throw_input_error(path_.string(), 0, "this recording was opened without ground truth");
   }
   const Eigen::Quaterniond q(g.T_world_body.linear());
-  const json j = {{"timestamp", stamp(g.t_ns)},
+  const json j = {{"timestamp", fj::time(g.t_ns)},
                   {"frame_id", "world"},
-                  {"position", vec3(g.T_world_body.translation())},
-                  {"orientation", {{"x", q.x()}, {"y", q.y()}, {"z", q.z()}, {"w", q.w()}}},
-                  {"velocity", vec3(g.vel_world_m_s)},
-                  {"gyro_bias", vec3(g.gyro_bias_rad_s)},
-                  {"accel_bias", vec3(g.accel_bias_m_s2)}};
+                  {"position", fj::vector3(g.T_world_body.translation())},
+                  {"orientation", fj::quaternion(q)},
+                  {"velocity", fj::vector3(g.vel_world_m_s)},
+                  {"gyro_bias", fj::vector3(g.gyro_bias_rad_s)},
+                  {"accel_bias", fj::vector3(g.accel_bias_m_s2)}};
   const std::uint64_t t = log_time(g.t_ns, path_);
   writer_->write_message(gt_channel_, t, t, bytes_of(j.dump()));
 }
