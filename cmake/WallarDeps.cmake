@@ -23,6 +23,23 @@ pkg_check_modules(EGL REQUIRED IMPORTED_TARGET egl)
 pkg_check_modules(GLES REQUIRED IMPORTED_TARGET glesv2)
 pkg_check_modules(GBM REQUIRED IMPORTED_TARGET gbm)
 pkg_check_modules(DRM REQUIRED IMPORTED_TARGET libdrm)
+# The live server (drivers/net): Foxglove's WebSocket protocol on libwebsockets (Debian 12: 4.1.6).
+# Its arm64 -dev package cannot be installed beside the amd64 one (their lws_config.h differ, in
+# the install path only), so a cross-build links the arm64 runtime library (libwebsockets17,
+# Multi-Arch: same) with the host's headers.
+pkg_check_modules(WEBSOCKETS QUIET IMPORTED_TARGET libwebsockets)
+if(NOT WEBSOCKETS_FOUND)
+  if(NOT CMAKE_CROSSCOMPILING)
+    message(FATAL_ERROR "libwebsockets not found (tools/setup installs libwebsockets-dev)")
+  endif()
+  find_path(WALLAR_WEBSOCKETS_INCLUDE libwebsockets.h REQUIRED)
+  find_library(WALLAR_WEBSOCKETS_LIB NAMES websockets libwebsockets.so.17 REQUIRED)
+  add_library(PkgConfig::WEBSOCKETS SHARED IMPORTED)
+  set_target_properties(PkgConfig::WEBSOCKETS PROPERTIES
+    IMPORTED_LOCATION "${WALLAR_WEBSOCKETS_LIB}"
+    INTERFACE_INCLUDE_DIRECTORIES "${WALLAR_WEBSOCKETS_INCLUDE}")
+  message(STATUS "libwebsockets: ${WALLAR_WEBSOCKETS_LIB} with the host's headers")
+endif()
 find_package(CLI11 CONFIG REQUIRED)
 find_package(nlohmann_json 3.10 REQUIRED)
 find_package(hwy REQUIRED)  # Highway: portable SIMD with run-time dispatch
