@@ -17,6 +17,7 @@
 #include "wallar/drivers/devices/device_names.hpp"
 #include "wallar/drivers/recording/tum_trajectory.hpp"
 #include "wallar/firmware/appliance.hpp"
+#include "wallar/firmware/appliance/stats.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/board_devices.hpp"
 #include "wallar/firmware/hil/replay_plan.hpp"
@@ -43,39 +44,22 @@ struct RunArgs {
   std::string method = "bsf";
   std::uint64_t seed = 1;
   std::string keys;
+  std::string live;  // [ADDRESS:]PORT
+  bool no_live = false;
   ReplayFlags flags;
 };
 
-nlohmann::json latency_json(const firmware::LatencySummary& l) {
-  return {{"count", l.count},
-          {"p50_ms", l.p50_ms},
-          {"p99_ms", l.p99_ms},
-          {"max_ms", l.max_ms},
-          {"mean_ms", l.mean_ms}};
+// The live server: off (null), or its URL and counters at the end.
+nlohmann::json live_json(const firmware::ApplianceReport& r) {
+  if (r.live_url.empty()) return nullptr;
+  nlohmann::json j = {{"url", r.live_url}};
+  for (const auto& [name, value] : r.live) j[name] = value;
+  return j;
 }
 
 nlohmann::json to_json(const firmware::ApplianceReport& r, const firmware::RunOutputs& out) {
-  nlohmann::json threads = nlohmann::json::array();
-  for (const firmware::ThreadRow& t : r.threads) {
-    threads.push_back({{"name", t.name},
-                       {"policy", t.policy},
-                       {"cpu", t.cpu},
-                       {"cpu_s", t.cpu_s},
-                       {"cpu_percent", t.cpu_percent},
-                       {"wakeups", t.wakeups},
-                       {"misses", t.misses},
-                       {"allocations_after_start",
-                        t.allocations ? nlohmann::json(*t.allocations) : nlohmann::json()},
-                       {"note", t.note}});
-  }
-  nlohmann::json stages = nlohmann::json::array();
-  for (const firmware::StageRow& s : r.stages) {
-    nlohmann::json j = latency_json(s.latency);
-    j["name"] = s.name;
-    j["deadline_ms"] = static_cast<double>(s.deadline_ns) * 1e-6;
-    j["misses"] = s.misses;
-    stages.push_back(j);
-  }
+  const nlohmann::json threads = firmware::to_json(r.threads);
+  const nlohmann::json stages = firmware::to_json(r.stages);
   nlohmann::json devices = nlohmann::json::object();
   for (const auto& [name, counters] : r.devices) devices[name] = counters;
   const firmware::DegradedCounters& d = r.degraded;
@@ -126,6 +110,7 @@ nlohmann::json to_json(const firmware::ApplianceReport& r, const firmware::RunOu
         {"losses", r.view.losses}}},
       {"threads", threads},
       {"stages", stages},
+      {"live", live_json(r)},
       {"memory_locked", r.memory_locked},
       {"max_rss_kb", r.max_rss_kb}};
   if (out.room) {
@@ -160,7 +145,12 @@ int run_check(const RunArgs& args, const firmware::BoardConfig& board) {
 }
 
 int run_run_command(const RunArgs& args) {
-  const firmware::BoardConfig board = firmware::load_board(args.board);
+  firmware::BoardConfig board = firmware::load_board(args.board);
+  if (!args.live.empty()) {
+    if (!board.live) board.live.emplace();
+    firmware::set_live_endpoint(*board.live, args.live, "--live");
+  }
+  if (args.no_live) board.live.reset();
   if (args.check) return run_check(args, board);
   firmware::ApplianceOptions options;
   source::ReplayOptions replay;
@@ -300,6 +290,12 @@ void add_run_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--seed", args->seed, "Seed of the wall search")->capture_default_str();
   cmd->add_option("--keys", args->keys,
                   "Keyboard for reset (R) and exit (Q, Esc): /dev/input/eventN or name:TEXT");
+  cmd->add_option("--live", args->live,
+                  "Serve the run live to Foxglove (its WebSocket protocol) on [ADDRESS:]PORT: "
+                  "8765 is 127.0.0.1:8765, 0.0.0.0:8765 every network (default: the board's "
+                  "live:, or off)");
+  cmd->add_flag("--no-live", args->no_live, "Do not serve live, whatever the board says")
+      ->excludes(cmd->get_option("--live"));
   add_replay_flags(*cmd, args->flags);
   cmd->callback([args, &run] { run = [args] { return run_run_command(*args); }; });
 }

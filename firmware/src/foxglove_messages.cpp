@@ -9,6 +9,7 @@
 
 #include "wallar/drivers/recording/foxglove_json.hpp"
 #include "wallar/drivers/recording/mcap_recording.hpp"
+#include "wallar/firmware/appliance/stats.hpp"
 
 namespace wallar::firmware::foxglove {
 namespace {
@@ -171,12 +172,14 @@ std::string pose_in_frame(TimeNs t_ns, const SE3d& T_world_body) {
       .dump();
 }
 
-std::string frame_transform(TimeNs t_ns, const SE3d& T_world_child, const std::string& child) {
-  return json{{"timestamp", fj::time(t_ns)},
-              {"parent_frame_id", "world"},
-              {"child_frame_id", child},
-              {"translation", fj::vector3(T_world_child.translation())},
-              {"rotation", fj::quaternion(Eigen::Quaterniond(T_world_child.linear()).normalized())}}
+std::string frame_transform(TimeNs t_ns, const SE3d& T_parent_child, const std::string& child,
+                            const std::string& parent) {
+  return json{
+      {"timestamp", fj::time(t_ns)},
+      {"parent_frame_id", parent},
+      {"child_frame_id", child},
+      {"translation", fj::vector3(T_parent_child.translation())},
+      {"rotation", fj::quaternion(Eigen::Quaterniond(T_parent_child.linear()).normalized())}}
       .dump();
 }
 
@@ -213,7 +216,7 @@ std::string point_cloud(TimeNs t_ns, const PointCloud& map, const std::vector<fl
       .dump();
 }
 
-std::string scene_update(TimeNs t_ns, const std::vector<Wall>& walls) {
+std::string scene_update(TimeNs t_ns, const std::vector<Wall>& walls, bool replace_all) {
   json entities = json::array();
   const SE3d identity = SE3d::Identity();
   for (const Wall& w : walls) {
@@ -274,7 +277,133 @@ std::string scene_update(TimeNs t_ns, const std::vector<Wall>& walls) {
             {"text", kind + " " + std::to_string(w.id)}}}},
          {"models", json::array()}});
   }
-  return json{{"deletions", json::array()}, {"entities", entities}}.dump();
+  // Deletions come before the entities (Foxglove applies them first): ALL, then the new set.
+  json deletions = json::array();
+  if (replace_all) deletions.push_back({{"timestamp", fj::time(t_ns)}, {"type", 1}, {"id", ""}});
+  return json{{"deletions", deletions}, {"entities", entities}}.dump();
+}
+
+Schema frame_transforms_schema() {
+  const json one = object("foxglove.FrameTransform", {{"timestamp", time_schema()},
+                                                      {"parent_frame_id", string_schema()},
+                                                      {"child_frame_id", string_schema()},
+                                                      {"translation", vector3_schema()},
+                                                      {"rotation", quaternion_schema()}});
+  json s = object("foxglove.FrameTransforms", {{"transforms", array_of(one)}});
+  s["required"] = {"transforms"};
+  return {"foxglove.FrameTransforms", s.dump()};
+}
+
+Schema poses_in_frame_schema() {
+  return {"foxglove.PosesInFrame",
+          object("foxglove.PosesInFrame", {{"timestamp", time_schema()},
+                                           {"frame_id", string_schema()},
+                                           {"poses", array_of(pose_schema())}})
+              .dump()};
+}
+
+Schema compressed_image_schema() {
+  json s = object("foxglove.CompressedImage",
+                  {{"timestamp", time_schema()},
+                   {"frame_id", string_schema()},
+                   {"data", {{"type", "string"}, {"contentEncoding", "base64"}}},
+                   {"format", {{"type", "string"}, {"description", "jpeg or png"}}}});
+  s["required"] = {"timestamp", "frame_id", "data", "format"};
+  return {"foxglove.CompressedImage", s.dump()};
+}
+
+Schema log_schema() {
+  json s =
+      object("foxglove.Log", {{"timestamp", time_schema()},
+                              {"level",
+                               {{"type", "integer"},
+                                {"description", "1 DEBUG, 2 INFO, 3 WARNING, 4 ERROR, 5 FATAL"},
+                                {"minimum", 0},
+                                {"maximum", 5}}},
+                              {"message", string_schema()},
+                              {"name", string_schema()},
+                              {"file", string_schema()},
+                              {"line", {{"type", "integer"}, {"minimum", 0}}}});
+  s["required"] = {"timestamp", "level", "message", "name"};
+  return {"foxglove.Log", s.dump()};
+}
+
+Schema stats_schema() {
+  const json latency = object("wallar.Latency", {{"name", string_schema()},
+                                                 {"count", {{"type", "integer"}}},
+                                                 {"p50_ms", number()},
+                                                 {"p99_ms", number()},
+                                                 {"max_ms", number()},
+                                                 {"mean_ms", number()},
+                                                 {"deadline_ms", number()},
+                                                 {"misses", {{"type", "integer"}}}});
+  const json thread =
+      object("wallar.Thread", {{"name", string_schema()},
+                               {"policy", string_schema()},
+                               {"cpu", {{"type", "integer"}}},
+                               {"cpu_s", number()},
+                               {"cpu_percent", number()},
+                               {"wakeups", {{"type", "integer"}}},
+                               {"misses", {{"type", "integer"}}},
+                               {"allocations_after_start", {{"type", {"integer", "null"}}}},
+                               {"note", string_schema()}});
+  json s = object("wallar.Stats", {{"timestamp", time_schema()},
+                                   {"threads", array_of(thread)},
+                                   {"stages", array_of(latency)},
+                                   {"live", {{"type", "object"}}}});
+  s["description"] = "The appliance's threads and stages (wallar run --stats), once a second";
+  s["required"] = {"timestamp", "threads", "stages"};
+  return {"wallar.Stats", s.dump()};
+}
+
+std::string frame_transforms(TimeNs t_ns, const std::vector<NamedTransform>& transforms) {
+  json all = json::array();
+  for (const NamedTransform& t : transforms) {
+    all.push_back(
+        {{"timestamp", fj::time(t_ns)},
+         {"parent_frame_id", t.parent},
+         {"child_frame_id", t.child},
+         {"translation", fj::vector3(t.T_parent_child.translation())},
+         {"rotation", fj::quaternion(Eigen::Quaterniond(t.T_parent_child.linear()).normalized())}});
+  }
+  return json{{"transforms", all}}.dump();
+}
+
+std::string poses_in_frame(TimeNs t_ns, std::span<const SE3d> T_world_body) {
+  json poses = json::array();
+  for (const SE3d& T : T_world_body) poses.push_back(pose(T));
+  return json{{"timestamp", fj::time(t_ns)}, {"frame_id", "world"}, {"poses", poses}}.dump();
+}
+
+std::string compressed_image(TimeNs t_ns, const std::string& frame_id, const char* format,
+                             std::span<const std::uint8_t> data) {
+  return json{{"timestamp", fj::time(t_ns)},
+              {"frame_id", frame_id},
+              {"data", recording::base64_encode(data)},
+              {"format", format}}
+      .dump();
+}
+
+std::string log(TimeNs t_ns, LogLevel level, const std::string& message, const std::string& name) {
+  return json{{"timestamp", fj::time(t_ns)},
+              {"level", static_cast<int>(level)},
+              {"message", message},
+              {"name", name},
+              {"file", ""},
+              {"line", 0}}
+      .dump();
+}
+
+std::string stats(TimeNs t_ns, const std::vector<ThreadRow>& threads,
+                  const std::vector<StageRow>& stages,
+                  const std::vector<std::pair<const char*, std::uint64_t>>& live) {
+  json counters = json::object();
+  for (const auto& [name, value] : live) counters[name] = value;
+  return json{{"timestamp", fj::time(t_ns)},
+              {"threads", to_json(threads)},
+              {"stages", to_json(stages)},
+              {"live", counters}}
+      .dump();
 }
 
 }  // namespace wallar::firmware::foxglove

@@ -92,9 +92,10 @@ void TrackingAndMapping::new_map() {
     const std::lock_guard<std::mutex> lock(map_mutex_);
     map_.reset();
   }
-  if (options_.map_channel != nullptr) {
-    options_.map_channel->back() = nullptr;
-    options_.map_channel->publish();
+  for (auto* channel : {options_.map_channel, options_.live_map_channel}) {
+    if (channel == nullptr) continue;
+    channel->back() = nullptr;
+    channel->publish();
   }
 }
 
@@ -223,9 +224,10 @@ void TrackingAndMapping::note(const dsp::MapperStats& stats) {
 
 void TrackingAndMapping::publish_map() {
   auto snapshot = std::make_shared<const dsp::MapSnapshot>(mapper_->snapshot());
-  if (options_.map_channel != nullptr) {
-    options_.map_channel->back() = snapshot;
-    options_.map_channel->publish();
+  for (auto* channel : {options_.map_channel, options_.live_map_channel}) {
+    if (channel == nullptr) continue;
+    channel->back() = snapshot;
+    channel->publish();
   }
   const std::lock_guard<std::mutex> lock(map_mutex_);
   map_ = std::move(snapshot);

@@ -188,6 +188,114 @@ run_faults)
   run run --board "$src/board/sim.yaml" --out "$tmp/o" --keys /dev/input/no-such-event; expect_rc 1
   expect_err "/dev/input/no-such-event"
   ;;
+live)
+  # `wallar run --live`: Foxglove's own client (@foxglove/ws-protocol, tools/node) gets
+  # serverInfo, every channel and messages on each that parse under its schema, while the
+  # appliance runs the sim board. Then the same run twice, a client that keeps up reading in
+  # both, and in the second a client that subscribes to everything and never reads: the
+  # stage latencies do not change (newest wins per channel; the stalled client loses messages,
+  # counted), nor does a frame go untracked.
+  command -v node >/dev/null && [ -d "$src/tools/node/node_modules/@foxglove/ws-protocol" ] ||
+    fail "no Node.js or no tools/node/node_modules (run tools/setup)"
+  client() { node "$src/tests/net/foxglove_ws_client.cjs" "$src/tools/node" "$@"; }
+  secs=8
+  [ -n "${WALLAR_EMULATOR:-}${WALLAR_SANITIZE:-}" ] && secs=12  # a slower start
+  # Starts the appliance serving on a free port; sets pid and url.
+  start_live() {
+    ${WALLAR_EMULATOR:-} "$bin" run --board "$src/board/sim.yaml" --live 127.0.0.1:0 --loop 0 \
+      --duration "$secs" --no-view --json --out "$tmp/o$1" >"$tmp/run$1.json" 2>"$tmp/run$1.err" &
+    pid=$!
+    url=
+    for _ in $(seq 1 300); do
+      url=$(grep -o 'ws://127\.0\.0\.1:[0-9]*/' "$tmp/run$1.err" | head -1)
+      [ -n "$url" ] && break
+      kill -0 $pid 2>/dev/null || break
+      sleep 0.1
+    done
+    [ -n "$url" ] || fail "no live server URL on stderr: $(cat "$tmp/run$1.err")"
+  }
+  finish_live() {
+    wait $pid; local rc=$?
+    [ $rc = 0 ] || fail "run $1 exited $rc: $(cat "$tmp/run$1.err")"
+  }
+  start_live 1
+  client "$url" 1 /pose /tf /trajectory /map /walls /cam0 /cam1 /stats /log >"$tmp/first" ||
+    fail "the reference client: $(cat "$tmp/first")"
+  client "$url" 1 --hold $((secs / 2)) >"$tmp/keep1" || fail "client beside run 1: $(cat "$tmp/keep1")"
+  finish_live 1
+  python3 - "$tmp/first" "$tmp/run1.json" "$tmp/keep1" <<'PY' || fail "live channels: $(head -c 3000 "$tmp/first")"
+import base64, json, sys
+got = json.load(open(sys.argv[1]))
+assert got['serverInfo']['name'] == 'wallar', got['serverInfo']
+schemas = {c['topic']: c['schemaName'] for c in got['channels']}
+assert schemas == {'/pose': 'foxglove.PoseInFrame', '/tf': 'foxglove.FrameTransforms',
+                   '/trajectory': 'foxglove.PosesInFrame', '/map': 'foxglove.PointCloud',
+                   '/walls': 'foxglove.SceneUpdate', '/cam0': 'foxglove.CompressedImage',
+                   '/cam1': 'foxglove.CompressedImage', '/stats': 'wallar.Stats',
+                   '/log': 'foxglove.Log'}, schemas
+last = {t: m['message'] for t, m in got['last'].items()}
+assert last['/pose']['frame_id'] == 'world' and 'orientation' in last['/pose']['pose']
+tf = {(t['parent_frame_id'], t['child_frame_id']) for t in last['/tf']['transforms']}
+assert {('world', 'body'), ('body', 'cam0'), ('body', 'cam1')} <= tf, tf
+# Once the attitude filter has gravity, the frame "up" (z against gravity) holds the world.
+later = json.load(open(sys.argv[3]))['last']['/tf']['message']['transforms']
+up = [t for t in later if (t['parent_frame_id'], t['child_frame_id']) == ('up', 'world')]
+assert len(up) == 1, later
+# The map: x y z sigma r g b as float32 per point (the bytes' length only, as the client keeps it).
+assert last['/map']['point_stride'] == 28 and last['/map']['data'] > 28 * 100, last['/map']
+ents = last['/walls']['entities']
+assert any(e['id'].startswith('surface-') and e['triangles'] for e in ents), ents
+assert last['/walls']['deletions'][0]['type'] == 1
+assert last['/cam0']['format'] == 'jpeg' and last['/cam0']['frame_id'] == 'cam0'
+names = [t['name'] for t in last['/stats']['threads']]
+assert 'tracking' in names and 'live' in names, names
+assert 'board sim' in last['/log']['message'] or 'live server' in last['/log']['message'], last['/log']
+run = json.load(open(sys.argv[2]))
+live = run['live']
+assert live['url'].startswith('ws://127.0.0.1:') and live['clients_total'] == 2, live
+assert live['images'] > 0 and live['client_errors'] == 0, live
+PY
+  # The same run, the same reading client, and a client that never reads.
+  ids=$(python3 -c "import json; print(' '.join(str(c['id']) for c in json.load(open('$tmp/first'))['channels']))")
+  start_live 2
+  python3 - "$url" "$secs" $ids <<'PY' &
+import socket, sys, time, json
+host, port = sys.argv[1][5:].rstrip('/').split(':')
+s = socket.socket()
+s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+s.connect((host, int(port)))
+s.sendall(b'GET / HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n'
+          b'Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n'
+          b'Sec-WebSocket-Protocol: foxglove.websocket.v1\r\n\r\n')
+subs = [{'id': i, 'channelId': int(c)} for i, c in enumerate(sys.argv[3:])]
+text = json.dumps({'op': 'subscribe', 'subscriptions': subs}).encode()
+frame = bytes([0x81, 0xfe]) + len(text).to_bytes(2, 'big') + bytes(4) + text  # masked, key 0
+s.sendall(frame)
+time.sleep(float(sys.argv[2]) + 5)  # never reads
+PY
+  stalled=$!
+  client "$url" 1 --hold $((secs / 2)) >"$tmp/keep2" || fail "client beside the stalled one: $(cat "$tmp/keep2")"
+  finish_live 2
+  kill $stalled 2>/dev/null; wait $stalled 2>/dev/null
+  python3 - "$tmp/run1.json" "$tmp/run2.json" "$tmp/keep2" <<'PY' || fail "a stalled client changed the run"
+import json, sys
+a, b = (json.load(open(p)) for p in sys.argv[1:3])
+keep = json.load(open(sys.argv[3]))
+assert b['live']['clients_total'] == 2 and b['live']['dropped'] > 0, b['live']
+assert keep['counts']['/pose'] > 10 and keep['counts']['/cam0'] >= 2, keep['counts']
+for run in (a, b):
+    assert run['frames']['overwritten'] == 0 and run['frames']['tracked'] == run['frames']['in'], run['frames']
+st = lambda r: {s['name']: s for s in r['stages']}
+sa, sb = st(a), st(b)
+for name in ('capture -> tracking', 'tracking'):
+    pa, pb = sa[name]['p50_ms'], sb[name]['p50_ms']
+    print(f'{name}: p50 {pa:.2f} -> {pb:.2f} ms, p99 {sa[name]["p99_ms"]:.2f} -> {sb[name]["p99_ms"]:.2f} ms')
+    # Loose for a loaded 2-core machine; a stage that waited on the network would take
+    # hundreds of ms once the stalled client's buffers are full.
+    assert pb <= 1.5 * pa + 3.0, (name, pa, pb)
+    assert sb[name]['p99_ms'] <= 2.0 * sa[name]['p99_ms'] + 20.0, (name, sa[name], sb[name])
+PY
+  ;;
 run_signals)
   # SIGUSR1 prints the stats table while running; SIGINT stops cleanly with exit code 130.
   # Started directly (not through the wallar function) so $! is the process itself.

@@ -107,6 +107,67 @@ TEST(FoxgloveMessages, ASurfaceIsItsExtentInTrianglesWithOutlineAndLabel) {
   EXPECT_EQ(e["texts"][0]["text"], "wall 5");
   EXPECT_LT(e["texts"][0]["pose"]["position"]["x"].get<double>(), 2.0);  // in front of it
   EXPECT_EQ(json::parse(fg::scene_update_schema().json_schema)["title"], "foxglove.SceneUpdate");
+  EXPECT_TRUE(s["deletions"].empty());  // a file's one update adds
+  // A live update replaces the scene: a deletion of ALL before its entities.
+  const json live = json::parse(fg::scene_update(3 * kNsPerS, {square_wall()}, true));
+  ASSERT_EQ(live["deletions"].size(), 1u);
+  EXPECT_EQ(live["deletions"][0]["type"], 1);
+  EXPECT_EQ(live["entities"].size(), 1u);
+}
+
+TEST(FoxgloveMessages, TransformsPathImageLogAndStatsCarryTheirFields) {
+  SE3d T = SE3d::Identity();
+  T.translation() = Eigen::Vector3d(1, 2, 3);
+  T.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const json tf = json::parse(fg::frame_transforms(
+      5 * kNsPerS + 7, {{"world", "body", T}, {"body", "cam0", SE3d::Identity()}}));
+  ASSERT_EQ(tf["transforms"].size(), 2u);
+  EXPECT_EQ(tf["transforms"][0]["parent_frame_id"], "world");
+  EXPECT_EQ(tf["transforms"][0]["child_frame_id"], "body");
+  EXPECT_EQ(tf["transforms"][0]["translation"]["z"], 3.0);
+  EXPECT_NEAR(tf["transforms"][0]["rotation"]["z"].get<double>(), std::sqrt(0.5), 1e-12);
+  EXPECT_EQ(tf["transforms"][1]["timestamp"]["nsec"], 7);
+
+  const std::vector<SE3d> path{SE3d::Identity(), T};
+  const json p = json::parse(fg::poses_in_frame(1, path));
+  ASSERT_EQ(p["poses"].size(), 2u);
+  EXPECT_EQ(p["poses"][1]["position"]["y"], 2.0);
+  EXPECT_EQ(p["frame_id"], "world");
+
+  const std::vector<std::uint8_t> bytes{0xff, 0xd8, 0xff, 0xe0, 0x01};
+  const json img = json::parse(fg::compressed_image(2, "cam1", "jpeg", bytes));
+  EXPECT_EQ(img["format"], "jpeg");
+  EXPECT_EQ(img["frame_id"], "cam1");
+  EXPECT_EQ(from_base64(img["data"].get<std::string>()), bytes);
+
+  const json log = json::parse(fg::log(3, fg::LogLevel::kWarning, "camera lost", "wallar"));
+  EXPECT_EQ(log["level"], 3);
+  EXPECT_EQ(log["message"], "camera lost");
+  EXPECT_EQ(log["name"], "wallar");
+
+  firmware::ThreadRow thread;
+  thread.name = "tracking";
+  thread.policy = "FIFO 60";
+  thread.allocations = 0;
+  firmware::StageRow stage;
+  stage.name = "tracking";
+  stage.latency.p50_ms = 4.5;
+  stage.deadline_ns = 50 * kNsPerMs;
+  const json st = json::parse(fg::stats(4, {thread}, {stage}, {{"sent", 12}, {"dropped", 3}}));
+  EXPECT_EQ(st["threads"][0]["policy"], "FIFO 60");
+  EXPECT_EQ(st["threads"][0]["allocations_after_start"], 0);
+  EXPECT_EQ(st["stages"][0]["p50_ms"], 4.5);
+  EXPECT_EQ(st["stages"][0]["deadline_ms"], 50.0);
+  EXPECT_EQ(st["live"]["dropped"], 3);
+  // Each schema names its Foxglove type and what its messages must hold.
+  for (const fg::Schema& schema :
+       {fg::frame_transforms_schema(), fg::poses_in_frame_schema(), fg::compressed_image_schema(),
+        fg::log_schema(), fg::stats_schema()}) {
+    const json j = json::parse(schema.json_schema);
+    EXPECT_EQ(j["title"], schema.name);
+    EXPECT_EQ(j["type"], "object");
+  }
+  EXPECT_EQ(json::parse(fg::log_schema().json_schema)["required"].size(), 4u);
 }
 
 }  // namespace

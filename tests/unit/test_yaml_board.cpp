@@ -289,5 +289,46 @@ TEST(Board, ReplayLoopsAreReadAndChecked) {
               HasSubstr("b.yaml:3: 'replay.loop' must be in 0..1000000 (0 = until stopped)"));
 }
 
+TEST(Board, TheLiveServerIsOffUnlessAskedAndItsKeysAreChecked) {
+  const std::string base = "board: {name: s}\nsource: replay\nreplay: {recording: r}\n";
+  EXPECT_FALSE(parse_board(base, "b.yaml", "/b").live);  // off by default
+  const auto on = parse_board(base + "live: {}\n", "b.yaml", "/b");
+  ASSERT_TRUE(on.live);
+  EXPECT_EQ(on.live->address, "127.0.0.1");  // this machine only, unless an address is given
+  EXPECT_EQ(on.live->port, 8765);
+  EXPECT_FALSE(on.live->token_file);
+  const auto all = parse_board(base +
+                                   "live: {address: 0.0.0.0, port: 9000, token_file: tok, "
+                                   "image_rate_hz: 2.5, jpeg_quality: 50}\n",
+                               "b.yaml", "/etc/wallar");
+  EXPECT_EQ(all.live->address, "0.0.0.0");
+  EXPECT_EQ(all.live->port, 9000);
+  EXPECT_EQ(*all.live->token_file, fs::path("/etc/wallar/tok"));
+  EXPECT_DOUBLE_EQ(all.live->image_rate_hz, 2.5);
+  EXPECT_EQ(all.live->jpeg_quality, 50);
+  EXPECT_THAT(board_error(base + "live: {port: 70000}\n"),
+              HasSubstr("b.yaml:4: 'live.port' must be in 0..65535"));
+  EXPECT_THAT(board_error(base + "live: {address: headset.local}\n"),
+              HasSubstr("b.yaml:4: 'live.address' must be an IPv4 address"));
+  EXPECT_THAT(board_error(base + "live: {image_rate_hz: 100}\n"),
+              HasSubstr("'live.image_rate_hz' must be in 0..60"));
+  EXPECT_THAT(board_error(base + "live: {prot: 1}\n"), HasSubstr("unknown key 'live.prot'"));
+
+  // `wallar run --live [ADDRESS:]PORT`.
+  firmware::LiveConfig live;
+  firmware::set_live_endpoint(live, "9001", "--live");
+  EXPECT_EQ(live.address, "127.0.0.1");
+  EXPECT_EQ(live.port, 9001);
+  firmware::set_live_endpoint(live, "0.0.0.0:0", "--live");
+  EXPECT_EQ(live.address, "0.0.0.0");
+  EXPECT_EQ(live.port, 0);
+  EXPECT_THAT(input_error_of([&] { firmware::set_live_endpoint(live, "host:80", "--live"); }),
+              HasSubstr("--live: 'host:80': the address must be IPv4"));
+  EXPECT_THAT(input_error_of([&] { firmware::set_live_endpoint(live, "1.2.3.4:99999", "--live"); }),
+              HasSubstr("the port must be 0..65535"));
+  EXPECT_THAT(input_error_of([&] { firmware::set_live_endpoint(live, "", "--live"); }),
+              HasSubstr("the port must be"));
+}
+
 }  // namespace
 }  // namespace wallar::test

@@ -3,6 +3,8 @@
 /// @brief Board file loading with a schema check.
 #include "wallar/firmware/board.hpp"
 
+#include <arpa/inet.h>
+
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/config/yaml.hpp"
 #include "wallar/drivers/recording/csv.hpp"
@@ -76,7 +78,7 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
   const YamlNode& root = doc.root();
   if (!root.is_map()) root.fail("must be a map (a board file)");
   root.check_keys({"board", "source", "replay", "cameras", "imu", "display", "tracking", "threads",
-                   "calibration", "input"});
+                   "calibration", "input", "live"});
   BoardConfig b;
   b.file = name;
 
@@ -192,8 +194,8 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
   if (const YamlNode* th = root.find("threads")) {
     th->check_keys({kThreadNames[0], kThreadNames[1], kThreadNames[2], kThreadNames[3],
                     kThreadNames[4], kThreadNames[5], kThreadNames[6], kThreadNames[7],
-                    kThreadNames[8]});
-    static_assert(std::size(kThreadNames) == 9, "threads: check_keys lists every name");
+                    kThreadNames[8], kThreadNames[9]});
+    static_assert(std::size(kThreadNames) == 10, "threads: check_keys lists every name");
     for (const std::string_view thread : kThreadNames) {
       const YamlNode* n = th->find(std::string(thread));
       if (n == nullptr) continue;
@@ -222,7 +224,50 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
     if (const YamlNode* r = in->find("reset_button")) b.reset_button = parse_gpio(*r);
     if (const YamlNode* e = in->find("exit_button")) b.exit_button = parse_gpio(*e);
   }
+
+  if (const YamlNode* l = root.find("live")) {
+    l->check_keys({"address", "port", "token_file", "image_rate_hz", "jpeg_quality"});
+    LiveConfig live;
+    if (const YamlNode* a = l->find("address")) {
+      live.address = a->as_string();
+      in_addr addr{};
+      if (inet_pton(AF_INET, live.address.c_str(), &addr) != 1) {
+        a->fail("must be an IPv4 address (127.0.0.1: this machine only; 0.0.0.0: every network)");
+      }
+    }
+    if (const YamlNode* p = l->find("port")) {
+      const std::int64_t v = p->as_int();
+      if (v < 0 || v > 65535) p->fail("must be in 0..65535 (0: any free port)");
+      live.port = static_cast<int>(v);
+    }
+    if (const YamlNode* t = l->find("token_file")) live.token_file = resolve(base_dir, *t);
+    if (const YamlNode* r = l->find("image_rate_hz")) {
+      live.image_rate_hz = r->as_double();
+      if (!(live.image_rate_hz >= 0.0 && live.image_rate_hz <= 60.0))
+        r->fail("must be in 0..60 (0: no images)");
+    }
+    if (const YamlNode* q = l->find("jpeg_quality")) live.jpeg_quality = positive_int(*q, 100);
+    b.live = live;
+  }
   return b;
+}
+
+void set_live_endpoint(LiveConfig& live, const std::string& spec, const std::string& what) {
+  const std::size_t colon = spec.rfind(':');
+  const std::string address = colon == std::string::npos ? live.address : spec.substr(0, colon);
+  const std::string port = colon == std::string::npos ? spec : spec.substr(colon + 1);
+  in_addr addr{};
+  if (inet_pton(AF_INET, address.c_str(), &addr) != 1) {
+    throw InputError(what + ": '" + spec + "': the address must be IPv4 (as 127.0.0.1:8765)");
+  }
+  const bool digits = !port.empty() && port.size() <= 5 &&
+                      port.find_first_not_of("0123456789") == std::string::npos;
+  if (!digits || std::stoi(port) > 65535) {
+    throw InputError(what + ": '" + spec +
+                     "': the port must be 0..65535 (as 8765 or 0.0.0.0:8765)");
+  }
+  live.address = address;
+  live.port = std::stoi(port);
 }
 
 BoardConfig load_board(const fs::path& path) {

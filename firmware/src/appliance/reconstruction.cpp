@@ -65,6 +65,10 @@ bool Reconstruction::maybe_run(const dsp::MapSnapshot& map,
   ++runs_;
   out_.back() = result.model;
   out_.publish();
+  if (second_out_ != nullptr) {
+    second_out_->back() = result.model;
+    second_out_->publish();
+  }
   result_ = std::move(result);
   return true;
 }

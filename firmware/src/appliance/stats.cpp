@@ -49,6 +49,39 @@ StageRow stage_row(const char* name, const LatencyHistogram& h, DurationNs deadl
   return s;
 }
 
+nlohmann::json to_json(const std::vector<ThreadRow>& threads) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (const ThreadRow& t : threads) {
+    rows.push_back({{"name", t.name},
+                    {"policy", t.policy},
+                    {"cpu", t.cpu},
+                    {"cpu_s", t.cpu_s},
+                    {"cpu_percent", t.cpu_percent},
+                    {"wakeups", t.wakeups},
+                    {"misses", t.misses},
+                    {"allocations_after_start",
+                     t.allocations ? nlohmann::json(*t.allocations) : nlohmann::json()},
+                    {"note", t.note}});
+  }
+  return rows;
+}
+
+nlohmann::json to_json(const std::vector<StageRow>& stages) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (const StageRow& s : stages) {
+    const LatencySummary& l = s.latency;
+    rows.push_back({{"name", s.name},
+                    {"count", l.count},
+                    {"p50_ms", l.p50_ms},
+                    {"p99_ms", l.p99_ms},
+                    {"max_ms", l.max_ms},
+                    {"mean_ms", l.mean_ms},
+                    {"deadline_ms", static_cast<double>(s.deadline_ns) * 1e-6},
+                    {"misses", s.misses}});
+  }
+  return rows;
+}
+
 std::string format_stats_table(const std::vector<ThreadRow>& threads,
                                const std::vector<StageRow>& stages) {
   std::string out;

@@ -17,6 +17,7 @@
 #include "wallar/firmware/appliance.hpp"
 #include "wallar/firmware/appliance/inputs.hpp"
 #include "wallar/firmware/appliance/live_module.hpp"
+#include "wallar/firmware/appliance/live_publisher.hpp"
 #include "wallar/firmware/appliance/pipeline_sink.hpp"
 #include "wallar/firmware/appliance/reconstruction.hpp"
 #include "wallar/firmware/appliance/replay_module.hpp"
@@ -85,6 +86,7 @@ ApplianceReport run_over_recording(const recording::EurocRecording& rec, const B
   replay_board.exit_button.reset();
   replay_board.keys.clear();
   replay_board.camera_trigger.reset();
+  replay_board.live.reset();  // an offline command serves nothing
   if (replay_board.name.empty()) replay_board.name = "offline";
   return run_modules(replay_board, options, stop, nullptr, &rec);
 }
@@ -144,11 +146,6 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   Inputs inputs(board, options.input_keys);
   SystemdNotifier notifier;
 
-  // The log: fixed-rate threads post records, a SCHED_OTHER thread formats and writes them
-  // (no stdio or formatting on a SCHED_FIFO thread), rate-limited for the journal.
-  LogRing log_ring;
-  LogThread log_thread(log_ring, options.log, thread_spec("log", realtime, &board), {});
-
   // Channels.
   std::atomic<bool> stop_modules{false};
   Wakeup tracking_wakeup;
@@ -156,6 +153,30 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   Seqlock<PoseSnapshot> pose;
   TripleBuffer<WallModel> walls_channel;
   TripleBuffer<MapPtr> map_channel;
+  // The live server's own (each triple buffer has one reader).
+  TripleBuffer<WallModel> live_walls_channel;
+  TripleBuffer<MapPtr> live_map_channel;
+
+  // The live server listens before any thread starts (a port in use is an InputError here),
+  // and outlives the log thread, which copies each line to it.
+  std::unique_ptr<LivePublisher> live;
+  if (board.live) {
+    live = std::make_unique<LivePublisher>(*board.live, rig, LivePublisherOptions{}, pose,
+                                           live_map_channel, live_walls_channel);
+    report.live_url = live->url();
+  }
+  std::function<void(const std::string&)> log_out = options.log;
+  if (live) {
+    log_out = [&live, log = options.log](const std::string& line) {
+      log(line);
+      live->log(line);
+    };
+  }
+
+  // The log: fixed-rate threads post records, a SCHED_OTHER thread formats and writes them
+  // (no stdio or formatting on a SCHED_FIFO thread), rate-limited for the journal.
+  LogRing log_ring;
+  LogThread log_thread(log_ring, log_out, thread_spec("log", realtime, &board), {});
 
   // Modules.
   TrackingThreadOptions tracking;
@@ -165,6 +186,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   tracking.tracking.use_gyro = options.use_gyro;
   tracking.tracking.mapping_thread_spec = thread_spec("mapping", realtime, &board);
   tracking.tracking.map_channel = &map_channel;
+  if (live) tracking.tracking.live_map_channel = &live_map_channel;
   tracking.every_frame = every_frame;
   tracking.camera_timeout_ns = options.camera_timeout_ns;
   tracking.imu_timeout_ns = options.imu_timeout_ns;
@@ -182,6 +204,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   Reconstruction reconstruction(reconstruction_options,
                                 static_cast<std::size_t>(board.tracking.max_map_points),
                                 walls_channel);
+  if (live) reconstruction.also_publish_to(&live_walls_channel);
   std::unique_ptr<TrackingThread> tracker;
   try {
     tracker = std::make_unique<TrackingThread>(rig, tracking, pipeline, tracking_wakeup, pose,
@@ -190,6 +213,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
     throw InputError(rig_source + ": calibration: " + e.what());
   }
   report.T_body_rect = tracker->system().tracker().T_body_rect();
+  if (live) tracker->set_live(live.get());
   std::unique_ptr<LiveView> view;
   if (options.view) {
     HeadsetViewOptions vo = view_options(board.display);
@@ -293,6 +317,9 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
       }
     }
     threads.push_back(row_of(log_thread.thread(), run_ns, 0, 0, nullptr));
+    if (live && live->thread() != nullptr) {
+      threads.push_back(row_of(*live->thread(), run_ns, 0, 0, nullptr));
+    }
     return threads;
   };
   const DurationNs frame_period = tracker->frame_period_ns();
@@ -340,6 +367,24 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
     LogThread& log;
     ~WithdrawReport() { log.set_report(nullptr, {}, {}); }
   } withdraw_report{log_thread};
+
+  // The live server's thread reads the same rows; stopped before the modules go (also when an
+  // exception leaves this scope).
+  if (live) {
+    live->start(thread_spec("live", realtime, &board),
+                [&](std::vector<ThreadRow>& threads, std::vector<StageRow>& stages) {
+                  threads = live_rows(monotonic_now_ns() - t_start);
+                  stages = stage_rows();
+                });
+    log_out("live server on " + live->url() +
+            " (in Foxglove: Open connection, Foxglove WebSocket)");
+  }
+  struct StopLive {
+    LivePublisher* live;
+    ~StopLive() {
+      if (live != nullptr) live->stop();
+    }
+  } stop_live{live.get()};
 
   report.rss_kb.reserve(1 << 16);
   TimeNs next_rss_ns = t_start;
@@ -410,6 +455,11 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   }
   tl_allocation_counter = nullptr;
   log_thread.set_report(nullptr, {}, {});
+  if (live) {
+    live->stop();
+    report.live = live->counters();
+    if (!live->error().empty()) options.log("live server stopped early: " + live->error());
+  }
   const bool supervisor_fifo = supervisor_priority && supervisor_priority->placement().fifo;
   supervisor_priority.reset();
   notifier.stopping();

@@ -25,6 +25,7 @@ constexpr ThreadTableEntry kThreadTable[] = {
     {"render", 0, -1, 4 * kMiB, "headset view (EGL)"},
     {"supervisor", 75, -1, 0, "health, stop, stats, watchdog (main thread)"},
     {"log", 0, -1, 256 * 1024, "log records formatted and written"},
+    {"live", 0, -1, 1 * kMiB, "live server: encodes for Foxglove (--live)"},
 };
 
 }  // namespace

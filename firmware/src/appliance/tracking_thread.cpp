@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "wallar/firmware/appliance/allocation_count.hpp"
+#include "wallar/firmware/appliance/live_publisher.hpp"
 #include "wallar/firmware/appliance/source_module.hpp"
 #include "wallar/firmware/imu_attitude.hpp"
 
@@ -240,6 +241,7 @@ void TrackingThread::on_frame(const StereoFrame& f) {
     post.degraded = imu_lost_ ? kImuLostHud : nullptr;
     view_->post(std::move(post));
   }
+  if (live_ != nullptr) live_->offer_frame(f);
   if (lockstep_reconstruction_ != nullptr && r.keyframe) {
     // Lock step: the walls at fixed points of the stream (after key-frames).
     const AllocationPause pause;

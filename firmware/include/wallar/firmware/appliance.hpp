@@ -133,6 +133,9 @@ struct ApplianceReport {
   std::uint64_t imu_samples = 0, imu_dropped = 0;
   std::uint64_t frames_in = 0, frames_overwritten = 0, frames_tracked = 0;
   LiveViewStats view;
+  /// The live server (board live:, `wallar run --live`): its URL (empty: off) and counters.
+  std::string live_url;
+  std::vector<std::pair<const char*, std::uint64_t>> live;
   /// The live devices' driver counters at the end (SourceModule::device_counters()).
   std::vector<std::pair<std::string, std::string>> devices;
   std::vector<std::string> events;  //!< transitions and warnings, in order

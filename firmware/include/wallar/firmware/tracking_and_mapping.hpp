@@ -59,6 +59,8 @@ struct TrackingOptions {
   ThreadSpec mapping_thread_spec{"mapping", 0, -1, 0};
   /// Also publish each map here (one reader, e.g. the reconstruction thread); may be null.
   TripleBuffer<std::shared_ptr<const dsp::MapSnapshot>>* map_channel = nullptr;
+  /// And here (the live server's, its own reader); may be null.
+  TripleBuffer<std::shared_ptr<const dsp::MapSnapshot>>* live_map_channel = nullptr;
   /// Test tooling: called on the mapping thread before it maps each key-frame (a slow bundle
   /// adjustment, to race a reset against); empty in the product.
   std::function<void()> before_mapping;

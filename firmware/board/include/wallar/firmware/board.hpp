@@ -85,9 +85,20 @@ struct ThreadPlacementConfig {
 };
 
 /// The names threads.NAME may take (the thread table's).
-inline constexpr const char* kThreadNames[] = {"imu",      "capture",    "replay",
-                                               "tracking", "mapping",    "reconstruct",
-                                               "render",   "supervisor", "log"};
+inline constexpr const char* kThreadNames[] = {"imu",     "capture",     "replay", "tracking",
+                                               "mapping", "reconstruct", "render", "supervisor",
+                                               "log",     "live"};
+
+/// live: the live server (Foxglove's WebSocket protocol, firmware/appliance/live_publisher.hpp).
+/// Off unless the board has the section or `wallar run --live` asks.
+struct LiveConfig {
+  std::string address = "127.0.0.1";  //!< IPv4 address to listen on (0.0.0.0: every one)
+  int port = 8765;                    //!< 0: any free port (said in the log)
+  /// A file whose first line is the token clients must give (ws://HOST:PORT/?token=...).
+  std::optional<std::filesystem::path> token_file;
+  double image_rate_hz = 5.0;  //!< JPEG images per second per camera (0: none)
+  int jpeg_quality = 70;       //!< 1..100
+};
 
 struct ReplayConfig {
   std::filesystem::path recording;  //!< EuRoC recording (absolute after loading)
@@ -116,7 +127,12 @@ struct BoardConfig {
   /// input.keys: an evdev keyboard or headset remote (R resets, Q/Esc exits), as
   /// `wallar run --keys` takes it (/dev/input/..., or name:TEXT); empty: none. --keys wins.
   std::string keys;
+  std::optional<LiveConfig> live;  //!< live: (the live server); `wallar run --live` sets it
 };
+
+/// "[ADDRESS:]PORT" (`wallar run --live`) into `live`'s address and port; throws InputError
+/// naming `what` on anything else.
+void set_live_endpoint(LiveConfig& live, const std::string& spec, const std::string& what);
 
 /// Reads and checks a board file; throws InputError "FILE:LINE: ..." naming the bad key.
 BoardConfig load_board(const std::filesystem::path& path);

@@ -61,6 +61,8 @@ class Reconstruction {
  public:
   Reconstruction(const ReconstructionOptions& options, std::size_t max_points,
                  TripleBuffer<WallModel>& out);
+  /// Each model is also published on `second` (the live server's channel); before any run.
+  void also_publish_to(TripleBuffer<WallModel>* second) { second_out_ = second; }
 
   /// Runs when the map grew enough since the last run (or `force`: whenever the map or the
   /// gravity mode changed); returns whether it ran. A new `epoch` (a reset) forgets the last
@@ -78,6 +80,7 @@ class Reconstruction {
   ReconstructionOptions options_;
   dsp::RoomEstimator estimator_;
   TripleBuffer<WallModel>& out_;
+  TripleBuffer<WallModel>* second_out_ = nullptr;
   std::optional<WallModel> previous_;
   std::optional<dsp::RoomResult> result_;
   std::size_t last_points_ = 0;

@@ -9,6 +9,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,9 @@ ThreadRow row_of(const RtThread& t, DurationNs run_ns, std::uint64_t wakeups, st
                  const std::atomic<std::uint64_t>* allocations);
 StageRow stage_row(const char* name, const LatencyHistogram& h, DurationNs deadline_ns,
                    std::uint64_t misses);
+/// The rows as `wallar run --json` and the live server's stats channel write them.
+nlohmann::json to_json(const std::vector<ThreadRow>& threads);
+nlohmann::json to_json(const std::vector<StageRow>& stages);
 /// The stats table (threads, then stages), fixed-width text.
 std::string format_stats_table(const std::vector<ThreadRow>& threads,
                                const std::vector<StageRow>& stages);

@@ -42,6 +42,8 @@
 
 namespace wallar::firmware {
 
+class LivePublisher;
+
 struct TrackingThreadOptions {
   TrackingOptions tracking;  //!< tracker sizes, gyro prior, mapping thread or lock step
   /// Frames are handed over one by one (none overwritten): the frame tracked last alone says
@@ -69,6 +71,8 @@ class TrackingThread {
   void request_reset();
   /// The view to post to (null: none); before the thread starts.
   void set_view(LiveView* view) { view_ = view; }
+  /// The live server to offer frames to (null: none); before the thread starts.
+  void set_live(LivePublisher* live) { live_ = live; }
   /// After the thread stopped: stops mapping (global adjustment) and returns the final map.
   MapPtr finish() { return system_.finish(); }
 
@@ -105,6 +109,7 @@ class TrackingThread {
   Wakeup& wakeup_;
   Seqlock<PoseSnapshot>& pose_;
   LiveView* view_;
+  LivePublisher* live_ = nullptr;
   Reconstruction* lockstep_reconstruction_;
   TrackingAndMapping system_;
   std::unique_ptr<dsp::AttitudeFilter> filter_;
