@@ -267,6 +267,10 @@ s.connect((host, int(port)))
 s.sendall(b'GET / HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n'
           b'Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n'
           b'Sec-WebSocket-Protocol: foxglove.websocket.v1\r\n\r\n')
+head = b''
+while b'\r\n\r\n' not in head:  # the upgrade's answer, then nothing more is read
+    head += s.recv(1)
+assert head.startswith(b'HTTP/1.1 101'), head
 subs = [{'id': i, 'channelId': int(c)} for i, c in enumerate(sys.argv[3:])]
 text = json.dumps({'op': 'subscribe', 'subscriptions': subs}).encode()
 frame = bytes([0x81, 0xfe]) + len(text).to_bytes(2, 'big') + bytes(4) + text  # masked, key 0
