@@ -21,6 +21,23 @@ expect_err() { grep -qF -- "$1" "$tmp/err" || fail "stderr lacks '$1': $(cat "$t
 expect_out() { grep -qF -- "$1" "$tmp/out" || fail "stdout lacks '$1': $(cat "$tmp/out")"; }
 one_err_line() { [ "$(grep -c . "$tmp/err")" = 1 ] || fail "expected one stderr line: $(cat "$tmp/err")"; }
 json() { python3 -c "import json,sys; d=json.load(open('$tmp/out')); print($1)"; }
+# Starts `wallar run` on the sim board serving live on a free port, stdout to $1.json and stderr
+# to $1.err, for $2 seconds (more arguments follow); sets pid and url (ws://127.0.0.1:PORT/).
+start_live() {
+  local out=$1 secs=$2
+  shift 2
+  ${WALLAR_EMULATOR:-} "$bin" run --board "$src/board/sim.yaml" --live 127.0.0.1:0 --loop 0 \
+    --duration "$secs" --no-view "$@" >"$out.json" 2>"$out.err" &
+  pid=$!
+  url=
+  for _ in $(seq 1 300); do
+    url=$(grep -o 'ws://127\.0\.0\.1:[0-9]*/' "$out.err" | head -1)
+    [ -n "$url" ] && break
+    kill -0 $pid 2>/dev/null || break
+    sleep 0.1
+  done
+  [ -n "$url" ] || fail "no live server URL on stderr: $(cat "$out.err")"
+}
 
 case "$case_name" in
 help)
@@ -200,25 +217,11 @@ live)
   client() { node "$src/tests/net/foxglove_ws_client.cjs" "$src/tools/node" "$@"; }
   secs=8
   [ -n "${WALLAR_EMULATOR:-}${WALLAR_SANITIZE:-}" ] && secs=12  # a slower start
-  # Starts the appliance serving on a free port; sets pid and url.
-  start_live() {
-    ${WALLAR_EMULATOR:-} "$bin" run --board "$src/board/sim.yaml" --live 127.0.0.1:0 --loop 0 \
-      --duration "$secs" --no-view --json --out "$tmp/o$1" >"$tmp/run$1.json" 2>"$tmp/run$1.err" &
-    pid=$!
-    url=
-    for _ in $(seq 1 300); do
-      url=$(grep -o 'ws://127\.0\.0\.1:[0-9]*/' "$tmp/run$1.err" | head -1)
-      [ -n "$url" ] && break
-      kill -0 $pid 2>/dev/null || break
-      sleep 0.1
-    done
-    [ -n "$url" ] || fail "no live server URL on stderr: $(cat "$tmp/run$1.err")"
-  }
   finish_live() {
     wait $pid; local rc=$?
     [ $rc = 0 ] || fail "run $1 exited $rc: $(cat "$tmp/run$1.err")"
   }
-  start_live 1
+  start_live "$tmp/run1" "$secs" --json --out "$tmp/o1"
   client "$url" 1 /pose /tf /trajectory /map /walls /cam0 /cam1 /stats /log >"$tmp/first" ||
     fail "the reference client: $(cat "$tmp/first")"
   client "$url" 1 --hold $((secs / 2)) >"$tmp/keep1" || fail "client beside run 1: $(cat "$tmp/keep1")"
@@ -257,7 +260,7 @@ assert live['images'] > 0 and live['client_errors'] == 0, live
 PY
   # The same run, the same reading client, and a client that never reads.
   ids=$(python3 -c "import json; print(' '.join(str(c['id']) for c in json.load(open('$tmp/first'))['channels']))")
-  start_live 2
+  start_live "$tmp/run2" "$secs" --json --out "$tmp/o2"
   python3 - "$url" "$secs" $ids <<'PY' &
 import socket, sys, time, json
 host, port = sys.argv[1][5:].rstrip('/').split(':')
@@ -299,6 +302,42 @@ for name in ('capture -> tracking', 'tracking'):
     assert pb <= 1.5 * pa + 3.0, (name, pa, pb)
     assert sb[name]['p99_ms'] <= 2.0 * sa[name]['p99_ms'] + 20.0, (name, sa[name], sb[name])
 PY
+  ;;
+viewer)
+  # The viewer page on the live server's port, in headless Chromium (Debian's chromium): it
+  # draws the map, the walls, the head and both cameras from the running appliance, and the
+  # screenshot holds each surface's colour where the page says the surface falls.
+  command -v chromium >/dev/null || fail "no chromium (tools/setup installs it)"
+  [ -d "$src/tools/node/node_modules/ws" ] || fail "no tools/node/node_modules (run tools/setup)"
+  start_live "$tmp/run" 120 --out "$tmp/o"
+  page="http${url#ws}"
+  # The page and its scripts come from the binary; anything else is a 404.
+  python3 - "$page" <<'PY' || { kill $pid; fail "the viewer's files"; }
+import sys, urllib.request, urllib.error
+base = sys.argv[1]
+page = urllib.request.urlopen(base).read().decode()
+assert 'viewer.js' in page and 'importmap' in page, page[:200]
+for path, kind in (('viewer.js', 'javascript'), ('three.module.js', 'javascript'),
+                   ('three.core.js', 'javascript'), ('addons/controls/OrbitControls.js', 'javascript')):
+    r = urllib.request.urlopen(base + path)
+    assert kind in r.headers['Content-Type'] and len(r.read()) > 1000, path
+try:
+    urllib.request.urlopen(base + 'etc/passwd')
+    raise SystemExit('a path that is not the viewer was served')
+except urllib.error.HTTPError as e:
+    assert e.code == 404, e.code
+PY
+  node "$src/tests/net/viewer_check.cjs" "$src/tools/node" "$page" "$tmp/viewer.png" >"$tmp/check" ||
+    { kill $pid; fail "the page: $(cat "$tmp/check")"; }
+  kill -INT $pid; wait $pid
+  python3 - "$tmp/check" <<'PY' || fail "viewer check: $(cat "$tmp/check")"
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d['state']['map'] > 100 and d['state']['walls'] >= 1 and d['state']['images'] >= 2, d
+assert d['samples'] >= 10 and d['matched'] >= 0.6 * d['samples'], d
+PY
+  [ -s "$tmp/viewer.png" ] || fail "no screenshot"
+  [ -z "${WALLAR_VIEWER_SCREENSHOT:-}" ] || cp "$tmp/viewer.png" "$WALLAR_VIEWER_SCREENSHOT"
   ;;
 run_signals)
   # SIGUSR1 prints the stats table while running; SIGINT stops cleanly with exit code 130.

@@ -363,6 +363,64 @@ TEST(FoxgloveServer, AChannelWithHistorySendsEveryKeptMessageInOrderAndCountsThe
   }
 }
 
+// One plain HTTP/1.1 GET; the status code and the body ("" and -1 when nothing came).
+std::pair<int, std::string> http_get(int port, const std::string& target) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
+    ::close(fd);
+    return {-1, ""};
+  }
+  const std::string req =
+      "GET " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n";
+  (void)!::send(fd, req.data(), req.size(), MSG_NOSIGNAL);
+  std::string got;
+  char buf[65536];
+  for (;;) {
+    pollfd pfd{fd, POLLIN, 0};
+    if (::poll(&pfd, 1, 10000) != 1) break;
+    const ssize_t r = ::recv(fd, buf, sizeof buf, 0);
+    if (r <= 0) break;
+    got.append(buf, static_cast<std::size_t>(r));
+  }
+  ::close(fd);
+  const std::size_t body = got.find("\r\n\r\n");
+  if (got.size() < 12 || body == std::string::npos) return {-1, ""};
+  return {std::stoi(got.substr(9, 3)), got.substr(body + 4)};
+}
+
+TEST(FoxgloveServer, ServesItsFilesOverHttpOnTheSamePortAndNothingElse) {
+  // A body larger than one 16 KiB piece, sent as the socket takes it.
+  static const std::string big = [] {
+    std::string b;
+    for (int i = 0; b.size() < 100000; ++i) b += std::to_string(i) + ",";
+    return b;
+  }();
+  FoxgloveServerOptions o = local_options();
+  o.token = "tok";
+  FoxgloveServer server(o);
+  add_two_channels(server);
+  server.add_http_file({"/", "text/html; charset=utf-8", "<html>page</html>"});
+  server.add_http_file({"/big.js", "text/javascript", big});
+  server.start();
+  EXPECT_EQ(http_get(server.port(), "/?token=tok"),
+            std::make_pair(200, std::string("<html>page</html>")));
+  EXPECT_EQ(http_get(server.port(), "/big.js?token=tok"), std::make_pair(200, big));
+  EXPECT_EQ(http_get(server.port(), "/etc/passwd?token=tok").first, 404);
+  EXPECT_EQ(http_get(server.port(), "/").first, 403);  // no token
+  EXPECT_EQ(http_get(server.port(), "/big.js?token=nope").first, 403);
+  // The WebSocket side beside it, as before.
+  RawClient ws(server.port(), 0, "?token=tok");
+  ASSERT_TRUE(ws.upgraded());
+  EXPECT_EQ(json::parse(ws.read_frame().second)["op"], "serverInfo");
+  const auto st = server.stats();
+  EXPECT_EQ(st.http_requests, 5u);
+  EXPECT_EQ(st.clients_refused, 2u);
+}
+
 TEST(FoxgloveServer, WithATokenOnlyAClientThatCarriesItIsServed) {
   ASSERT_TRUE(have_node_client()) << "no Node.js or no tools/node/node_modules (run tools/setup)";
   FoxgloveServerOptions o = local_options();

@@ -38,6 +38,16 @@ struct Subscription {
   std::uint64_t sent_seq = 0;  // the newest message of the channel this client has had
 };
 
+struct Client;
+
+// libwebsockets' per-connection data (zeroed by it): a WebSocket client, or an HTTP file
+// being sent.
+struct Session {
+  Client* client;
+  const HttpFile* file;
+  std::size_t sent;
+};
+
 struct Client {
   lws* wsi = nullptr;
   std::deque<std::string> text_out;  // serverInfo, advertise, status: in order, before data
@@ -89,6 +99,7 @@ struct ChannelState {
 struct FoxgloveServer::Impl {
   FoxgloveServerOptions options;
   std::vector<ChannelState> channels;  // id = index + 1; the list is fixed at start()
+  std::vector<HttpFile> files;         // fixed at start()
   mutable std::mutex mutex;            // channels (but their info), stats
   FoxgloveServerStats stats;
   lws_protocols protocols[2] = {};
@@ -108,6 +119,9 @@ struct FoxgloveServer::Impl {
   int on_receive(Client* c, const void* in, std::size_t len);
   void handle_text(Client* c, const std::string& text);
   int on_writeable(Client* c);
+  bool token_ok(lws* wsi) const;
+  int on_http(lws* wsi, Session* s, const char* path);
+  int on_http_writeable(lws* wsi, Session* s);
   bool pending(const Client* c) const;
   void run();
 };
@@ -115,8 +129,13 @@ struct FoxgloveServer::Impl {
 int FoxgloveServer::Impl::callback(lws* wsi, lws_callback_reasons reason, void* user, void* in,
                                    size_t len) {
   auto* impl = static_cast<Impl*>(lws_context_user(lws_get_context(wsi)));
-  auto** slot = static_cast<Client**>(user);
+  auto* session = static_cast<Session*>(user);
+  Client** slot = session != nullptr ? &session->client : nullptr;
   switch (reason) {
+    case LWS_CALLBACK_HTTP:
+      return impl->on_http(wsi, session, static_cast<const char*>(in));
+    case LWS_CALLBACK_HTTP_WRITEABLE:
+      return session != nullptr ? impl->on_http_writeable(wsi, session) : -1;
     case LWS_CALLBACK_FILTER_PROTOCOL_CONNECTION:
       return impl->on_filter(wsi);
     case LWS_CALLBACK_ESTABLISHED:
@@ -144,14 +163,73 @@ int FoxgloveServer::Impl::callback(lws* wsi, lws_callback_reasons reason, void* 
   }
 }
 
-int FoxgloveServer::Impl::on_filter(lws* wsi) {
-  if (options.token.empty()) return 0;
+bool FoxgloveServer::Impl::token_ok(lws* wsi) const {
+  if (options.token.empty()) return true;
   char buf[256];
   const char* got = lws_get_urlarg_by_name(wsi, "token=", buf, sizeof buf);
-  if (got != nullptr && options.token == got) return 0;
+  return got != nullptr && options.token == got;
+}
+
+int FoxgloveServer::Impl::on_filter(lws* wsi) {
+  if (token_ok(wsi)) return 0;
   std::lock_guard lock(mutex);
   ++stats.clients_refused;
   return -1;  // refuses the upgrade: the connection closes
+}
+
+int FoxgloveServer::Impl::on_http(lws* wsi, Session* s, const char* path) {
+  const std::string_view want = path != nullptr ? path : "";
+  const HttpFile* file = nullptr;
+  for (const HttpFile& f : files) {
+    if (f.path == want) file = &f;
+  }
+  const bool allowed = token_ok(wsi);
+  {
+    std::lock_guard lock(mutex);
+    ++stats.http_requests;
+    if (!allowed) ++stats.clients_refused;
+  }
+  if (!allowed || file == nullptr || s == nullptr) {
+    lws_return_http_status(wsi, allowed ? HTTP_STATUS_NOT_FOUND : HTTP_STATUS_FORBIDDEN, nullptr);
+    return lws_http_transaction_completed(wsi) != 0 ? -1 : 0;
+  }
+  unsigned char headers[LWS_PRE + 512];
+  unsigned char* start = headers + LWS_PRE;
+  unsigned char* p = start;
+  unsigned char* end = headers + sizeof headers - 1;
+  if (lws_add_http_common_headers(wsi, HTTP_STATUS_OK, file->content_type.c_str(),
+                                  file->body.size(), &p, end) != 0 ||
+      lws_add_http_header_by_token(wsi, WSI_TOKEN_HTTP_CACHE_CONTROL,
+                                   reinterpret_cast<const unsigned char*>("no-store"), 8, &p,
+                                   end) != 0 ||
+      lws_finalize_write_http_header(wsi, start, &p, end) != 0) {
+    return -1;
+  }
+  s->file = file;
+  s->sent = 0;
+  lws_callback_on_writable(wsi);
+  return 0;
+}
+
+int FoxgloveServer::Impl::on_http_writeable(lws* wsi, Session* s) {
+  if (s->file == nullptr) return -1;
+  constexpr std::size_t kPiece = 16 * 1024;
+  unsigned char buf[LWS_PRE + kPiece];
+  const std::string_view body = s->file->body;
+  const std::size_t n = std::min(kPiece, body.size() - s->sent);
+  std::memcpy(buf + LWS_PRE, body.data() + s->sent, n);
+  s->sent += n;
+  const bool last = s->sent == body.size();
+  if (lws_write(wsi, buf + LWS_PRE, n, last ? LWS_WRITE_HTTP_FINAL : LWS_WRITE_HTTP) !=
+      static_cast<int>(n)) {
+    return -1;
+  }
+  if (!last) {
+    lws_callback_on_writable(wsi);
+    return 0;
+  }
+  s->file = nullptr;
+  return lws_http_transaction_completed(wsi) != 0 ? -1 : 0;
 }
 
 void FoxgloveServer::Impl::on_established(lws* wsi, Client** slot) {
@@ -371,6 +449,11 @@ std::uint32_t FoxgloveServer::add_channel(FoxgloveChannel channel) {
   return static_cast<std::uint32_t>(impl_->channels.size());
 }
 
+void FoxgloveServer::add_http_file(HttpFile file) {
+  if (impl_->started.load()) throw_input_error("live server", 0, "add_http_file after start()");
+  impl_->files.push_back(std::move(file));
+}
+
 void FoxgloveServer::start() {
   Impl& m = *impl_;
   if (m.started.load()) return;
@@ -399,7 +482,7 @@ void FoxgloveServer::start() {
   m.protocols[0] = {};
   m.protocols[0].name = "foxglove.websocket.v1";
   m.protocols[0].callback = &Impl::callback;
-  m.protocols[0].per_session_data_size = sizeof(Client*);
+  m.protocols[0].per_session_data_size = sizeof(Session);
   m.protocols[0].rx_buffer_size = 0;
   m.protocols[1] = {};  // the list's end
 

@@ -10,6 +10,7 @@
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/recording/jpeg.hpp"
 #include "wallar/firmware/foxglove_messages.hpp"
+#include "wallar/firmware/viewer_files.hpp"
 
 namespace wallar::firmware {
 namespace {
@@ -84,6 +85,9 @@ LivePublisher::LivePublisher(const LiveConfig& config, const RigCalibration& rig
   ch_.cam[1] = add(fg::compressed_image_schema(), "/cam1");
   ch_.stats = add(fg::stats_schema(), "/stats");
   ch_.log = add(fg::log_schema(), "/log", std::max<std::size_t>(options_.log_history, 1));
+  // The viewer page on the same port (http://HOST:PORT/), a client of these channels.
+  for (const ViewerFile& f : viewer_files())
+    server_.add_http_file({f.path, f.content_type, f.body});
   trajectory_.reserve(options_.max_trajectory_poses);
   thread_rows_.reserve(16);
   stage_rows_.reserve(16);
@@ -171,7 +175,7 @@ void LivePublisher::loop(const std::atomic<bool>& stop) {
       server_.publish(ch_.walls, t, fg::scene_update(t, walls_.front().walls, true));
     }
     if (walls_changed || now >= next_scene_ns_) {  // the map's colours follow the walls
-      publish_scene(t);
+      publish_scene(t, walls_changed);
       next_scene_ns_ = now + options_.scene_period_ns;
     }
     // Images: asked of the tracking thread only while someone watches a camera.
@@ -226,9 +230,9 @@ void LivePublisher::publish_pose(const PoseSnapshot& p) {
   }
 }
 
-void LivePublisher::publish_scene(TimeNs now_ns) {
+void LivePublisher::publish_scene(TimeNs now_ns, bool walls_changed) {
   const std::vector<Wall>& walls = walls_.front().walls;
-  if (map_changed_ && maps_.front()) {
+  if ((map_changed_ || walls_changed) && maps_.front()) {  // coloured by the surfaces
     map_changed_ = false;
     const dsp::MapSnapshot& m = *maps_.front();
     server_.publish(ch_.map, now_ns, fg::point_cloud(now_ns, m.points, m.sigma_m, walls));

@@ -104,7 +104,7 @@ class LivePublisher {
  private:
   void loop(const std::atomic<bool>& stop);
   void publish_pose(const PoseSnapshot& p);
-  void publish_scene(TimeNs t_ns);
+  void publish_scene(TimeNs t_ns, bool walls_changed);
   void publish_images(const StereoFrame& frame);
 
   LiveConfig config_;

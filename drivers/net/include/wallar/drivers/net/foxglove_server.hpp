@@ -17,7 +17,9 @@
 /// keeps: a stalled client costs nothing but the messages it holds a reference to).
 ///
 /// Security: binds to 127.0.0.1 unless an address is given; with a token, a connection must
-/// carry it as the URL's `token` argument (ws://HOST:PORT/?token=...) or is refused.
+/// carry it as the URL's `token` argument (ws://HOST:PORT/?token=...) or is refused, and so
+/// must an HTTP request for one of the files served beside the protocol (add_http_file: GET
+/// only, each file sent in 16 KiB pieces as the socket takes them).
 ///
 /// Threading: the owner constructs it, adds channels, start()s and stop()s it (or destroys it)
 /// from one thread. publish() may be called from any thread, also concurrently, but not while
@@ -64,11 +66,21 @@ struct FoxgloveChannel {
   std::size_t history = 1;
 };
 
+/// A file served over plain HTTP on the same port (`GET /path`; with a token, `?token=` too):
+/// a page of our own beside the protocol. `body` is not copied: it must outlive the server
+/// (the firmware's viewer files are built into the binary).
+struct HttpFile {
+  std::string path;          //!< "/", "/viewer.js"
+  std::string content_type;  //!< "text/html; charset=utf-8"
+  std::string_view body;
+};
+
 struct FoxgloveServerStats {
   std::uint64_t clients_connected = 0;  //!< now
   std::uint64_t clients_total = 0;      //!< since start
   std::uint64_t clients_refused = 0;    //!< a missing or wrong token
   std::uint64_t client_errors = 0;      //!< malformed or oversized client messages
+  std::uint64_t http_requests = 0;      //!< plain HTTP requests answered (files or 404)
   std::uint64_t subscriptions = 0;      //!< now, over every client
   std::uint64_t published = 0;          //!< publish() calls
   std::uint64_t sent = 0;               //!< message frames written to clients
@@ -87,6 +99,8 @@ class FoxgloveServer {
 
   /// Before start(): a channel and its id (ids from 1, as Foxglove's servers give them).
   std::uint32_t add_channel(FoxgloveChannel channel);
+  /// Before start(): a file to serve over HTTP (other paths get 404).
+  void add_http_file(HttpFile file);
 
   /// Listens and starts the service thread. Throws InputError naming ADDRESS:PORT when the
   /// socket cannot be bound (in use, no such address).
