@@ -94,16 +94,6 @@ void add_rotation(const recording::RecordingWriter& w, nlohmann::json& report, s
           r->segments().front().filename().string() + "/\n";
 }
 
-// What the recorder reports, in both outputs.
-nlohmann::json recorder_json(const source::RecorderCounters& c,
-                             const source::AsyncRecorderOptions& o) {
-  return {{"imu_dropped", c.imu_dropped},           {"frames_dropped", c.frames_dropped},
-          {"imu_high_water", c.imu_high_water},     {"imu_capacity", o.imu_capacity},
-          {"frame_high_water", c.frame_high_water}, {"frame_capacity", o.frame_capacity},
-          {"pairs_written", c.pairs_written},       {"frames_not_copied", c.frames_not_copied},
-          {"write_errors", c.write_errors},         {"error", c.error}};
-}
-
 std::string recorder_text(const source::RecorderCounters& c,
                           const source::AsyncRecorderOptions& o) {
   return "  recorder: dropped " + std::to_string(c.imu_dropped) + " IMU samples, " +
@@ -235,7 +225,7 @@ int run_live_record(const RecordArgs& args, const firmware::BoardConfig& board_i
                         {"pairs", cap.pairing().pairs},
                         {"unpaired", {cap.pairing().unpaired[0], cap.pairing().unpaired[1]}},
                         {"cameras", cams},
-                        {"recorder", recorder_json(rc, recorder_options)}};
+                        {"recorder", firmware::to_json(rc, recorder_options)}};
   // The IMU driver's counters: what the bus delivered, against the rows that were written.
   std::string imu_counters;
   if (imu) {
@@ -287,7 +277,7 @@ int run_record_command(const RecordArgs& args) {
                         {"imu_rows", rc.imu_written},
                         {"cam_rows", rc.frames_written},
                         {"replay", firmware::to_json(stats)},
-                        {"recorder", recorder_json(rc, recorder_options)}};
+                        {"recorder", firmware::to_json(rc, recorder_options)}};
   std::string rotation_text;
   add_rotation(*writer, report, rotation_text);
   if (args.json) {

@@ -15,7 +15,11 @@
 #include "wallar/drivers/camera/v4l2_system.hpp"
 #include "wallar/drivers/cloud/cloud_io.hpp"
 #include "wallar/drivers/devices/device_names.hpp"
+#include "wallar/drivers/recording/calibration_files.hpp"
+#include "wallar/drivers/recording/euroc.hpp"
+#include "wallar/drivers/recording/mcap_recording.hpp"
 #include "wallar/drivers/recording/tum_trajectory.hpp"
+#include "wallar/drivers/source/async_recorder.hpp"
 #include "wallar/firmware/appliance.hpp"
 #include "wallar/firmware/appliance/stats.hpp"
 #include "wallar/firmware/board.hpp"
@@ -44,7 +48,8 @@ struct RunArgs {
   std::string method = "bsf";
   std::uint64_t seed = 1;
   std::string keys;
-  std::string live;  // [ADDRESS:]PORT
+  std::string live;    // [ADDRESS:]PORT
+  std::string record;  // FILE.mcap
   bool no_live = false;
   ReplayFlags flags;
 };
@@ -144,6 +149,18 @@ int run_check(const RunArgs& args, const firmware::BoardConfig& board) {
   return check.any_bad_input() ? kExitBadInput : kExitFailure;
 }
 
+// The rig the board runs with: its replay's, or its calibration file's (checked again, with
+// the devices, when the appliance starts).
+RigCalibration board_rig(const firmware::BoardConfig& board) {
+  if (board.source == firmware::BoardConfig::Source::kReplay) {
+    return recording::read_recording(board.replay.recording).rig();
+  }
+  if (!board.calibration) {
+    throw InputError(board.file.string() + ": a live board needs calibration: to track");
+  }
+  return recording::read_rig_calibration(*board.calibration);
+}
+
 int run_run_command(const RunArgs& args) {
   firmware::BoardConfig board = firmware::load_board(args.board);
   if (!args.live.empty()) {
@@ -182,6 +199,27 @@ int run_run_command(const RunArgs& args) {
   fs::create_directories(args.out, ec);
   if (ec) throw_input_error(args.out, 0, "cannot create output folder: " + ec.message());
 
+  // --record FILE.mcap: the sensor streams as the source delivers them (the recorder's rings:
+  // a full ring drops and counts, never waits), then the run's outputs.
+  std::unique_ptr<recording::McapRecordingWriter> record_writer;
+  std::unique_ptr<source::AsyncRecorder> recorder;
+  source::AsyncRecorderOptions record_options;
+  if (!args.record.empty()) {
+    if (fs::path(args.record).extension() != ".mcap") {
+      throw InputError("--record: '" + args.record +
+                       "' is not an .mcap file (`wallar record` writes EuRoC folders)");
+    }
+    const RigCalibration rig = board_rig(board);
+    record_writer = std::make_unique<recording::McapRecordingWriter>(args.record, rig);
+    for (std::size_t i = 0; i < 2; ++i) {
+      record_options.width_px[i] = rig.cams[i].width_px;
+      record_options.height_px[i] = rig.cams[i].height_px;
+    }
+    record_options.close_writer = false;  // the outputs follow the streams
+    recorder = std::make_unique<source::AsyncRecorder>(*record_writer, record_options);
+    options.record = recorder.get();
+  }
+
   const firmware::ApplianceReport report =
       firmware::run_appliance(board, options, stop_requested(), &stats_requested());
 
@@ -202,6 +240,16 @@ int run_run_command(const RunArgs& args) {
     }
   }
   if (report.view.view.written > 0) outputs.push_back("view/");
+  if (recorder) {
+    const source::RecorderCounters c = recorder->close();
+    if (c.error.empty()) firmware::write_outputs_mcap(*record_writer, out);
+    record_writer->close();
+    summary["record"] = firmware::to_json(c, record_options);
+    summary["record"]["file"] = args.record;
+    summary["record"]["imu_rows"] = c.imu_written;
+    summary["record"]["cam_rows"] = c.frames_written;
+    summary["record"]["outputs"] = c.error.empty();
+  }
   summary["outputs"] = outputs;
   std::ofstream(fs::path(args.out) / "run_summary.json") << summary.dump(2) << "\n";
 
@@ -294,6 +342,9 @@ void add_run_command(CLI::App& app, std::function<int()>& run) {
                   "Serve the run live to Foxglove (its WebSocket protocol) on [ADDRESS:]PORT: "
                   "8765 is 127.0.0.1:8765, 0.0.0.0:8765 every network (default: the board's "
                   "live:, or off)");
+  cmd->add_option("--record", args->record,
+                  "Record the run in one MCAP file: the sensor streams as they come (images, "
+                  "IMU), then the run's /pose, /tf, /map and /walls (as `wallar track --mcap`)");
   cmd->add_flag("--no-live", args->no_live, "Do not serve live, whatever the board says")
       ->excludes(cmd->get_option("--live"));
   add_replay_flags(*cmd, args->flags);

@@ -29,7 +29,6 @@
 #include "wallar/drivers/recording/tum_trajectory.hpp"
 #include "wallar/eval/output.hpp"
 #include "wallar/firmware/board.hpp"
-#include "wallar/firmware/foxglove_messages.hpp"
 #include "wallar/firmware/offline.hpp"
 #include "wallar/firmware/report.hpp"
 
@@ -56,23 +55,7 @@ void write_run_mcap(const std::string& path, const recording::EurocRecording& re
                     const firmware::RunOutputs& o) {
   recording::McapRecordingWriter w(path, rec.rig(), {}, !rec.ground_truth.empty());
   recording::write_streams(rec, w);
-  namespace fg = firmware::foxglove;
-  auto channel = [&w](const fg::Schema& s, const char* topic) {
-    return w.add_json_channel(s.name, s.json_schema, topic);
-  };
-  const std::uint16_t pose = channel(fg::pose_in_frame_schema(), "/pose");
-  const std::uint16_t tf = channel(fg::frame_transform_schema(), "/tf");
-  const std::uint16_t map = channel(fg::point_cloud_schema(), "/map");
-  const std::uint16_t walls = channel(fg::scene_update_schema(), "/walls");
-  for (const StampedPose& p : o.poses) {
-    w.write_json(pose, p.t_ns, fg::pose_in_frame(p.t_ns, p.T_world_body));
-    w.write_json(tf, p.t_ns, fg::frame_transform(p.t_ns, p.T_world_body, "body"));
-  }
-  const TimeNs t_end = o.poses.empty() ? 0 : o.poses.back().t_ns;
-  const std::vector<Wall> none;
-  const std::vector<Wall>& surfaces = o.room ? o.room->model.walls : none;
-  w.write_json(map, t_end, fg::point_cloud(t_end, o.map, o.sigma_m, surfaces));
-  w.write_json(walls, t_end, fg::scene_update(t_end, surfaces));
+  firmware::write_outputs_mcap(w, o);
   w.close();
 }
 

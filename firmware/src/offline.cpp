@@ -10,6 +10,7 @@
 #include "wallar/dsp/imu/static_init.hpp"
 #include "wallar/dsp/walls/room.hpp"
 #include "wallar/dsp/walls/room_check.hpp"
+#include "wallar/firmware/foxglove_messages.hpp"
 #include "wallar/firmware/world_frames.hpp"
 
 namespace wallar::firmware {
@@ -163,6 +164,25 @@ RunEvaluation evaluate_run(const recording::EurocRecording& rec, const Appliance
     }
   }
   return out;
+}
+
+void write_outputs_mcap(recording::McapRecordingWriter& w, const RunOutputs& o) {
+  auto channel = [&w](const foxglove::Schema& s, const char* topic) {
+    return w.add_json_channel(s.name, s.json_schema, topic);
+  };
+  const std::uint16_t pose = channel(foxglove::pose_in_frame_schema(), "/pose");
+  const std::uint16_t tf = channel(foxglove::frame_transform_schema(), "/tf");
+  const std::uint16_t map = channel(foxglove::point_cloud_schema(), "/map");
+  const std::uint16_t walls = channel(foxglove::scene_update_schema(), "/walls");
+  for (const StampedPose& p : o.poses) {
+    w.write_json(pose, p.t_ns, foxglove::pose_in_frame(p.t_ns, p.T_world_body));
+    w.write_json(tf, p.t_ns, foxglove::frame_transform(p.t_ns, p.T_world_body, "body"));
+  }
+  const TimeNs t_end = o.poses.empty() ? 0 : o.poses.back().t_ns;
+  const std::vector<Wall> none;
+  const std::vector<Wall>& surfaces = o.room ? o.room->model.walls : none;
+  w.write_json(map, t_end, foxglove::point_cloud(t_end, o.map, o.sigma_m, surfaces));
+  w.write_json(walls, t_end, foxglove::scene_update(t_end, surfaces));
 }
 
 }  // namespace wallar::firmware

@@ -52,6 +52,14 @@ nlohmann::json to_json(const source::ReplayStats& s) {
           {"stopped", s.stopped}};
 }
 
+nlohmann::json to_json(const source::RecorderCounters& c, const source::AsyncRecorderOptions& o) {
+  return {{"imu_dropped", c.imu_dropped},           {"frames_dropped", c.frames_dropped},
+          {"imu_high_water", c.imu_high_water},     {"imu_capacity", o.imu_capacity},
+          {"frame_high_water", c.frame_high_water}, {"frame_capacity", o.frame_capacity},
+          {"pairs_written", c.pairs_written},       {"frames_not_copied", c.frames_not_copied},
+          {"write_errors", c.write_errors},         {"error", c.error}};
+}
+
 namespace {
 std::string line(const recording::StreamStats& s) {
   char buf[320];

@@ -339,6 +339,28 @@ PY
   [ -s "$tmp/viewer.png" ] || fail "no screenshot"
   [ -z "${WALLAR_VIEWER_SCREENSHOT:-}" ] || cp "$tmp/viewer.png" "$WALLAR_VIEWER_SCREENSHOT"
   ;;
+run_record)
+  # `wallar run --record FILE.mcap`: the sim board's sensor streams as the appliance received
+  # them, then the run's outputs, in one file Foxglove's reader accepts; tracked offline, the
+  # file gives the trajectory the bundled folder gives.
+  command -v node >/dev/null && [ -d "$src/tools/node/node_modules/@mcap/core" ] ||
+    fail "no Node.js or no tools/node/node_modules (run tools/setup)"
+  run run --board "$src/board/sim.yaml" --record "$tmp/run.mcap" --no-view --json --out "$tmp/o"
+  expect_rc 0
+  read -r imu tracked dropped < <(json "d['imu']['samples'], d['frames']['tracked'], d['record']['imu_dropped'] + d['record']['frames_dropped'] + d['record']['write_errors']" | tr -d '(),')
+  [ "$dropped" = 0 ] || fail "the recorder lost $dropped samples: $(cat "$tmp/out")"
+  [ "$(json "d['record']['cam_rows']")" = "[40, 40]" ] || fail "cam rows: $(json "d['record']")"
+  node "$src/tests/cli/mcap_reference.cjs" "$src/tools/node" "$tmp/run.mcap" /cam0=40 /cam1=40 \
+    /imu0=$imu /pose=$tracked /tf=$tracked /map=1 /walls=1 >"$tmp/ref" ||
+    fail "the reference reader refused the run's recording"
+  run track "$tmp/run.mcap" --lockstep --out "$tmp/a.tum"; expect_rc 0
+  run track "$rec" --lockstep --out "$tmp/b.tum"; expect_rc 0
+  cmp "$tmp/a.tum" "$tmp/b.tum" || fail "the recorded run tracks differently from its recording"
+  run run --board "$src/board/sim.yaml" --record "$tmp/run.mcap" --no-view --out "$tmp/o"
+  expect_rc 2; one_err_line; expect_err "run.mcap"  # it exists: never overwritten
+  run run --board "$src/board/sim.yaml" --record "$tmp/folder" --no-view --out "$tmp/o"
+  expect_rc 2; one_err_line; expect_err "is not an .mcap file"
+  ;;
 run_signals)
   # SIGUSR1 prints the stats table while running; SIGINT stops cleanly with exit code 130.
   # Started directly (not through the wallar function) so $! is the process itself.

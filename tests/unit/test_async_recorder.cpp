@@ -227,6 +227,33 @@ TEST(AsyncRecorder, WaitWhenFullLosesNothing) {
   EXPECT_EQ(rec.cams[1].frames.size(), static_cast<std::size_t>(kImu / 10));
 }
 
+// Counts what the recorder hands it, and whether it was closed.
+class CountingWriter final : public recording::RecordingWriter {
+ public:
+  void write_imu(const ImuSample& /*sample*/) override { ++imu; }
+  void write_camera(int /*cam*/, const CameraFrame& /*frame*/) override { ++frames; }
+  void close() override { ++closes; }
+  int imu = 0, frames = 0, closes = 0;
+};
+
+TEST(AsyncRecorder, LeavesTheWriterOpenWhenAskedSoTheOwnerCanAddToIt) {
+  CountingWriter writer;
+  AsyncRecorderOptions o = options_64x48();
+  o.close_writer = false;  // `wallar run --record`: the run's outputs follow
+  {
+    AsyncRecorder recorder(writer, o);
+    for (int i = 0; i < 20; ++i) recorder.on_imu(imu_sample(i, 0.0));
+    const RecorderCounters c = recorder.close();
+    EXPECT_EQ(c.imu_written, 20u);
+    EXPECT_EQ(writer.imu, 20);  // drained before close() returned
+    EXPECT_EQ(writer.closes, 0);
+  }
+  EXPECT_EQ(writer.closes, 0);  // nor by the destructor
+  CountingWriter closed;
+  { AsyncRecorder recorder(closed, options_64x48()); }
+  EXPECT_EQ(closed.closes, 1);  // the default: the recorder closes it
+}
+
 TEST(AsyncRecorder, ReferencesAreGivenBackOnceWritten) {
   TempDir tmp;
   // copy_frames off, and copies on with slot buffers too small: both keep the source's image.

@@ -244,6 +244,7 @@ struct AsyncRecorder::State {
     }
     // Flush and fsync. A failure here (none today: EurocWriter::close() does not throw) is
     // reported but loses no counted sample.
+    if (!options.close_writer) return;
     try {
       writer.close();
     } catch (const std::exception& e) {

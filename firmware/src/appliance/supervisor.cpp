@@ -20,6 +20,7 @@
 #include "wallar/firmware/appliance/live_publisher.hpp"
 #include "wallar/firmware/appliance/pipeline_sink.hpp"
 #include "wallar/firmware/appliance/reconstruction.hpp"
+#include "wallar/firmware/appliance/recording_tee.hpp"
 #include "wallar/firmware/appliance/replay_module.hpp"
 #include "wallar/firmware/appliance/snapshots.hpp"
 #include "wallar/firmware/appliance/stats.hpp"
@@ -251,8 +252,13 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
         reconstruction, map_channel, pose, options.reconstruct_period_ns,
         thread_spec("reconstruct", realtime, &board), stop_modules);
   }
+  // `wallar run --record`: the samples go to the recorder too (never waiting for it).
+  std::optional<RecordingTee> tee;
+  if (options.record != nullptr) tee.emplace(pipeline, *options.record);
+  source::SensorSink& sink = tee ? static_cast<source::SensorSink&>(*tee) : pipeline;
+  drivers::ImuSampleSink& imu_sink = tee ? static_cast<drivers::ImuSampleSink&>(*tee) : pipeline;
   try {
-    source->start(pipeline, pipeline, realtime, stop_modules);  // live: opens the devices
+    source->start(sink, imu_sink, realtime, stop_modules);  // live: opens the devices
   } catch (...) {
     // The consumers already run: stop them before unwinding joins them.
     stop_modules.store(true, std::memory_order_release);

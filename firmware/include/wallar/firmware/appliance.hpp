@@ -45,6 +45,7 @@
 
 #include "wallar/core/pose.hpp"
 #include "wallar/drivers/input/evdev_keys.hpp"
+#include "wallar/drivers/source/async_recorder.hpp"
 #include "wallar/drivers/source/replay_source.hpp"
 #include "wallar/dsp/tracking/tracker.hpp"
 #include "wallar/dsp/walls/room.hpp"
@@ -105,6 +106,9 @@ struct ApplianceOptions {
   /// Tests: one more input beside the board's, asked by the supervisor at every tick (its
   /// thread) when the board's gave nothing.
   std::function<drivers::InputAction(TimeNs now_ns)> test_input;
+  /// Also hand every sample the source delivers to this recorder (`wallar run --record`; its
+  /// rings never block: a full ring drops, counted); null: none. It outlives the run.
+  source::AsyncRecorder* record = nullptr;
   /// One line per event (start, transitions, warnings); default: stderr.
   std::function<void(const std::string&)> log;
 };

@@ -20,6 +20,7 @@
 
 #include "wallar/core/point_cloud.hpp"
 #include "wallar/drivers/recording/euroc.hpp"
+#include "wallar/drivers/recording/mcap_recording.hpp"
 #include "wallar/dsp/eval/trajectory.hpp"
 #include "wallar/firmware/appliance.hpp"
 
@@ -51,6 +52,11 @@ RunOutputs outputs_in(const ApplianceReport& report, const SE3d& T_world_tracker
 inline RunOutputs outputs_in_body_world(const ApplianceReport& report) {
   return outputs_in(report, report.T_body_rect);
 }
+
+/// The run's outputs added to an MCAP recording as Foxglove messages (firmware/
+/// foxglove_messages.hpp): /pose and /tf (world -> body) per record, the final /map and
+/// /walls at the last record's time. `wallar track --mcap` and `wallar run --record` alike.
+void write_outputs_mcap(recording::McapRecordingWriter& writer, const RunOutputs& outputs);
 
 /// The rotation that turns the first body pose's world so z is up: gravity from the IMU's
 /// still window of one second around `t0_ns`; none without IMU samples there.

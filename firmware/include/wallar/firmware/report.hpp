@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "wallar/drivers/recording/stream_stats.hpp"
+#include "wallar/drivers/source/async_recorder.hpp"
 #include "wallar/drivers/source/replay_source.hpp"
 #include "wallar/dsp/walls/room.hpp"
 
@@ -20,6 +21,9 @@ namespace wallar::firmware {
 nlohmann::json to_json(const recording::StreamStats& s);
 nlohmann::json to_json(const recording::RecordingStats& s);
 nlohmann::json to_json(const source::ReplayStats& s);
+/// What a recorder did (drops, high water against capacity, write errors), as `wallar record`
+/// and `wallar run --record` report it.
+nlohmann::json to_json(const source::RecorderCounters& c, const source::AsyncRecorderOptions& o);
 
 /// The `wallar walls` schema: {"surfaces":[{"id","kind","normal","d","inliers","backliers",
 /// "score","rmse_m","extent"}], "rounds", "points"}.

@@ -52,6 +52,10 @@ struct AsyncRecorderOptions {
   /// Wait (sleeping briefly) for room instead of dropping when a ring is full. For producers
   /// that can afford to wait, such as replay; live sources keep this false.
   bool wait_when_full = false;
+  /// close() closes the writer (flush, fsync). False leaves it open for the owner, who may add
+  /// to it once close() returned and closes it itself (`wallar run --record`: the run's
+  /// outputs after its sensor streams).
+  bool close_writer = true;
 };
 
 /// What the recorder did. A sample is in exactly one of: written, dropped, write_errors.
