@@ -258,6 +258,23 @@ live = run['live']
 assert live['url'].startswith('ws://127.0.0.1:') and live['clients_total'] == 2, live
 assert live['images'] > 0 and live['client_errors'] == 0, live
 PY
+  # Every network without a token: said at start. The board's token file: a client without the
+  # token is refused before the upgrade, one with it is served.
+  run run --board "$src/board/sim.yaml" --live 0.0.0.0:0 --duration 1 --no-view --out "$tmp/o0"
+  expect_rc 0; expect_err "without a token: anyone on that network can watch"
+  printf 's3cret-1\n' >"$tmp/live.token"
+  sed 's|recording: \.\./|recording: '"$src"'/|' "$src/board/sim.yaml" >"$tmp/token.yaml"
+  printf 'live:\n  port: 0\n  token_file: live.token\n' >>"$tmp/token.yaml"
+  ${WALLAR_EMULATOR:-} "$bin" run --board "$tmp/token.yaml" --loop 0 --duration "$secs" --no-view \
+    --out "$tmp/ot" >/dev/null 2>"$tmp/token.err" &
+  pid=$!
+  for _ in $(seq 1 300); do grep -q 'ws://' "$tmp/token.err" && break; sleep 0.1; done
+  url=$(grep -o 'ws://127\.0\.0\.1:[0-9]*/' "$tmp/token.err" | head -1)
+  [ -n "$url" ] || fail "no URL with the token file: $(cat "$tmp/token.err")"
+  grep -q "without a token" "$tmp/token.err" && fail "a token warning on 127.0.0.1"
+  client "$url" --refused >/dev/null || fail "served without the token"
+  client "$url?token=s3cret-1" 1 /pose >/dev/null || fail "refused with the token"
+  kill -INT $pid; wait $pid
   # The same run, the same reading client, and a client that never reads.
   ids=$(python3 -c "import json; print(' '.join(str(c['id']) for c in json.load(open('$tmp/first'))['channels']))")
   start_live "$tmp/run2" "$secs" --json --out "$tmp/o2"

@@ -105,10 +105,17 @@ std::string LivePublisher::url() const {
 void LivePublisher::start(ThreadSpec spec, StatsSource stats) {
   stats_ = std::move(stats);
   thread_ = std::make_unique<RtThread>(std::move(spec), [this] { loop(stop_); });
+}
+
+std::string LivePublisher::describe() const {
+  std::string d = "live server on " + url() +
+                  " (Foxglove: Open connection, Foxglove WebSocket; a "
+                  "browser: http" +
+                  url().substr(2) + ")";
   if (!is_loopback(config_.address) && !config_.token_file) {
-    log("live server on " + url() +
-        " without a token: anyone on that network can watch (board live.token_file)");
+    d += "; without a token: anyone on that network can watch (board: live.token_file)";
   }
+  return d;
 }
 
 void LivePublisher::stop() {

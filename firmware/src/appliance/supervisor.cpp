@@ -382,8 +382,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
                   threads = live_rows(monotonic_now_ns() - t_start);
                   stages = stage_rows();
                 });
-    log_out("live server on " + live->url() +
-            " (in Foxglove: Open connection, Foxglove WebSocket)");
+    log_out(live->describe());
   }
   struct StopLive {
     LivePublisher* live;

@@ -94,6 +94,9 @@ class LivePublisher {
 
   /// "ws://127.0.0.1:8765/" (the port the kernel chose when the board said 0).
   [[nodiscard]] std::string url() const;
+  /// The start-up log line: where to connect, and a warning when a network address has no
+  /// token.
+  [[nodiscard]] std::string describe() const;
   [[nodiscard]] const RtThread* thread() const { return thread_.get(); }
   [[nodiscard]] net::FoxgloveServerStats server_stats() const { return server_.stats(); }
   /// Images encoded and published (both cameras counted).
