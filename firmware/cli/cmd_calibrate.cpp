@@ -6,8 +6,10 @@
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "commands.hpp"
+#include "wallar/core/error.hpp"
 #include "wallar/drivers/recording/calibration_files.hpp"
 #include "wallar/eval/output.hpp"
 #include "wallar/firmware/imu_cam_calibration.hpp"
@@ -20,6 +22,7 @@ namespace {
 struct ImuCamArgs {
   std::string recording;
   std::string out;        // the rig file to write
+  std::string imu;        // the IMU's noise (`calibrate imu-noise --out`), into the rig file
   bool pairwise = false;  // rotations from image pairs instead of the tracker
   firmware::ImuCamCalibrationParams params;
   bool json = false;
@@ -40,6 +43,16 @@ RigCalibration calibrated_rig(const recording::EurocRecording& rec,
 }
 
 int run_imu_cam(const ImuCamArgs& a) {
+  if (!a.imu.empty() && a.out.empty())
+    throw InputError("--imu: goes into the rig file: give --out");
+  // Read first: a bad noise file is said before minutes of tracking.
+  std::optional<ImuCalibration> noise;
+  if (!a.imu.empty()) {
+    noise = recording::read_imu_sensor_yaml(a.imu);
+    if (!(noise->gyro_noise_density > 0.0 && noise->accel_noise_density > 0.0)) {
+      throw InputError(a.imu + ": --imu: no gyroscope and accelerometer noise densities");
+    }
+  }
   recording::ReadOptions options;
   options.check_image_files = true;
   const recording::EurocRecording rec = read_recording_reporting(a.recording, options);
@@ -76,9 +89,18 @@ int run_imu_cam(const ImuCamArgs& a) {
       {"timeshift_cam_imu_ms", static_cast<double>(c.timeshift_cam_imu_ns) * 1e-6}};
   if (!a.out.empty()) {
     // One rig file the board points at: both cameras, T_cam_imu and the time offset (Kalibr's
-    // camchain-imucam layout, which `calibration:` in a board file reads).
-    eval::write_file_atomically(a.out,
-                                recording::format_kalibr_camchain(calibrated_rig(rec, c), true));
+    // camchain-imucam layout, which `calibration:` in a board file reads), and the IMU's noise:
+    // measured at rest (--imu), else the recording's.
+    RigCalibration rig = calibrated_rig(rec, c);
+    if (noise) {
+      rig.imu.rate_hz = noise->rate_hz;
+      rig.imu.gyro_noise_density = noise->gyro_noise_density;
+      rig.imu.gyro_random_walk = noise->gyro_random_walk;
+      rig.imu.accel_noise_density = noise->accel_noise_density;
+      rig.imu.accel_random_walk = noise->accel_random_walk;
+      j["imu_noise_from"] = a.imu;
+    }
+    eval::write_file_atomically(a.out, recording::format_kalibr_camchain(rig, true));
     j["out"] = a.out;
   }
   if (a.json) {
@@ -207,6 +229,9 @@ void add_calibrate_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--out", a->out,
                   "Write the rig file (Kalibr camchain with T_cam_imu and timeshift_cam_imu) "
                   "for the board's calibration: key");
+  cmd->add_option("--imu", a->imu,
+                  "The IMU's noise for the rig file: `calibrate imu-noise --out`'s sensor.yaml "
+                  "(default: the recording's)");
   cmd->add_flag("--json", a->json, "Print the result as JSON on stdout");
   cmd->callback([a, &run] { run = [a] { return run_imu_cam(*a); }; });
   auto n = std::make_shared<ImuNoiseArgs>();

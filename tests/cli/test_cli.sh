@@ -888,7 +888,14 @@ calibrate_imu_cam)
   [ -n "${WALLAR_EMULATOR:-}" ] && exit 0
   run eval synth-rig --out "$tmp/la" --motion look-around --duration 8 --time-offset-ms 5 \
     --width 320 --height 240; expect_rc 0
-  run calibrate imu-cam "$tmp/la" --out "$tmp/rig.yaml" --json; expect_rc 0
+  # The IMU's noise as `calibrate imu-noise --out` writes it (here: the clip's sensor.yaml with
+  # other densities) goes into the rig file with the transform and the offset.
+  sed 's/^gyroscope_noise_density:.*/gyroscope_noise_density: 1.5e-04/; s/^accelerometer_noise_density:.*/accelerometer_noise_density: 2.5e-03/' \
+    "$tmp/la/mav0/imu0/sensor.yaml" >"$tmp/imu.yaml"
+  grep -q '^gyroscope_noise_density: 1.5e-04' "$tmp/imu.yaml" || fail "could not write imu.yaml"
+  run calibrate imu-cam "$tmp/la" --imu "$tmp/nowhere.yaml" --out "$tmp/rig.yaml"
+  expect_rc 2; one_err_line; expect_err "nowhere.yaml"  # said before the tracking
+  run calibrate imu-cam "$tmp/la" --imu "$tmp/imu.yaml" --out "$tmp/rig.yaml" --json; expect_rc 0
   [ "$(json "d['camera_rotations']")" = tracked ] || fail "rotations from the tracker"
   [ "$(json "d['vs_calibration_deg'] < 0.5")" = True ] || fail "extrinsic: $(cat "$tmp/out")"
   [ "$(json "abs(d['timeshift_cam_imu_ms'] - 5.0) < 1.0")" = True ] || fail "offset: $(cat "$tmp/out")"
@@ -896,11 +903,12 @@ calibrate_imu_cam)
 import sys
 t = open(sys.argv[1]).read()
 shift = [float(l.split(':')[1]) for l in t.splitlines() if l.strip().startswith('timeshift_cam_imu')]
-noise = [l for l in t.splitlines() if l.strip().startswith('gyroscope_noise_density:')
-         and abs(float(l.split(':')[1].split('#')[0]) - 2.6e-4) < 1e-9]  # the recording's
+def value(key):
+    return [float(l.split(':')[1].split('#')[0]) for l in t.splitlines() if l.strip().startswith(key + ':')]
+noise = value('gyroscope_noise_density') == [1.5e-4] and value('accelerometer_noise_density') == [2.5e-3]
 sys.exit(0 if 'T_cam_imu' in t and len(shift) == 2 and abs(shift[0] - 0.005) < 0.001 and noise else 1)
 PY
-  # The board reads it: a replay board over the clip with this calibration tracks.
+  # (A live board's calibration: key reads this file; CalibrationFiles.* read it back.)
   run track "$tmp/la" --lockstep --json; expect_rc 0
   ;;
 track)
