@@ -23,6 +23,7 @@ struct ImuCamArgs {
   std::string recording;
   std::string out;        // the rig file to write
   std::string imu;        // the IMU's noise (`calibrate imu-noise --out`), into the rig file
+  std::string cameras;    // the cameras (`calibrate stereo --out/--kalibr`): tracked with them
   bool pairwise = false;  // rotations from image pairs instead of the tracker
   firmware::ImuCamCalibrationParams params;
   bool json = false;
@@ -42,6 +43,32 @@ RigCalibration calibrated_rig(const recording::EurocRecording& rec,
   return rig;
 }
 
+// The cameras of a stereo calibration (`calibrate stereo`: intrinsics, distortion, cam0 ->
+// cam1) in place of the recording's, placed in its body frame as its cam0 is (the IMU's
+// position in the rig file stays the recording's), so the tracking and the rig file use them.
+void use_cameras(const RigCalibration& from, const std::string& file,
+                 recording::EurocRecording& rec) {
+  for (std::size_t i = 0; i < 2; ++i) {
+    const CameraCalibration& c = from.cams[i];
+    const CameraCalibration& r = rec.cams[i].calib;
+    if (c.width_px != r.width_px || c.height_px != r.height_px) {
+      throw InputError(file + ": --cameras: cam" + std::to_string(i) + " is " +
+                       std::to_string(c.width_px) + "x" + std::to_string(c.height_px) +
+                       " but the recording's images are " + std::to_string(r.width_px) + "x" +
+                       std::to_string(r.height_px));
+    }
+  }
+  const SE3d T_body_cam0 = rec.cams[0].calib.T_body_cam;
+  const SE3d T_cam0_cam1 = from.T_cam0_cam1();
+  for (std::size_t i = 0; i < 2; ++i) {
+    CameraCalibration c = from.cams[i];
+    c.name = rec.cams[i].calib.name;
+    if (c.rate_hz <= 0.0) c.rate_hz = rec.cams[i].calib.rate_hz;  // OpenCV's file has none
+    c.T_body_cam = i == 0 ? T_body_cam0 : T_body_cam0 * T_cam0_cam1;
+    rec.cams[i].calib = c;
+  }
+}
+
 int run_imu_cam(const ImuCamArgs& a) {
   if (!a.imu.empty() && a.out.empty())
     throw InputError("--imu: goes into the rig file: give --out");
@@ -53,9 +80,12 @@ int run_imu_cam(const ImuCamArgs& a) {
       throw InputError(a.imu + ": --imu: no gyroscope and accelerometer noise densities");
     }
   }
+  std::optional<RigCalibration> cameras;
+  if (!a.cameras.empty()) cameras = recording::read_rig_calibration(a.cameras);
   recording::ReadOptions options;
   options.check_image_files = true;
-  const recording::EurocRecording rec = read_recording_reporting(a.recording, options);
+  recording::EurocRecording rec = read_recording_reporting(a.recording, options);
+  if (cameras) use_cameras(*cameras, a.cameras, rec);
   firmware::ImuCamCalibration c;
   if (a.pairwise) {
     c = firmware::calibrate_imu_cam(rec, a.params);
@@ -229,6 +259,9 @@ void add_calibrate_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--out", a->out,
                   "Write the rig file (Kalibr camchain with T_cam_imu and timeshift_cam_imu) "
                   "for the board's calibration: key");
+  cmd->add_option("--cameras", a->cameras,
+                  "The cameras from `calibrate stereo` (its --out or --kalibr file) instead of "
+                  "the recording's: tracked with them and written to the rig file");
   cmd->add_option("--imu", a->imu,
                   "The IMU's noise for the rig file: `calibrate imu-noise --out`'s sensor.yaml "
                   "(default: the recording's)");

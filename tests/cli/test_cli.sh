@@ -908,6 +908,23 @@ def value(key):
 noise = value('gyroscope_noise_density') == [1.5e-4] and value('accelerometer_noise_density') == [2.5e-3]
 sys.exit(0 if 'T_cam_imu' in t and len(shift) == 2 and abs(shift[0] - 0.005) < 0.001 and noise else 1)
 PY
+  # The cameras from `calibrate stereo`'s file (here: this rig file with cam0's principal point
+  # moved by half a pixel) in place of the recording's: tracked with them, written with them.
+  python3 - "$tmp/rig.yaml" "$tmp/cams.yaml" "$tmp/cams_vga.yaml" <<'PY' || fail "cams.yaml"
+import sys
+t = open(sys.argv[1]).read().split('\n')
+i = next(k for k, l in enumerate(t) if l.strip().startswith('intrinsics:'))
+fu, fv, pu, pv = (float(v) for v in t[i].split('[')[1].rstrip(']').split(','))
+t[i] = f'  intrinsics: [{fu}, {fv}, {pu + 0.5}, {pv}]'
+open(sys.argv[2], 'w').write('\n'.join(t))
+open(sys.argv[3], 'w').write('\n'.join(t).replace('resolution: [320, 240]', 'resolution: [640, 480]'))
+PY
+  run calibrate imu-cam "$tmp/la" --cameras "$tmp/cams_vga.yaml" --out "$tmp/rig2.yaml"
+  expect_rc 2; one_err_line; expect_err "--cameras: cam0 is 640x480 but the recording's images are 320x240"
+  run calibrate imu-cam "$tmp/la" --cameras "$tmp/cams.yaml" --out "$tmp/rig2.yaml" --json
+  expect_rc 0
+  [ "$(json "d['vs_calibration_deg'] < 0.5")" = True ] || fail "extrinsic with --cameras: $(cat "$tmp/out")"
+  grep -q 'intrinsics: \[225, 225, 160, 119.5\]' "$tmp/rig2.yaml" || fail "cameras not taken: $(head -12 "$tmp/rig2.yaml")"
   # (A live board's calibration: key reads this file; CalibrationFiles.* read it back.)
   run track "$tmp/la" --lockstep --json; expect_rc 0
   ;;
