@@ -116,6 +116,27 @@ cam1:
   EXPECT_NEAR(k.cams[0].T_body_cam.translation().x(), -0.0216401454975, 1e-5);
 }
 
+TEST(CalibrationFiles, TheCameraRateTravelsInTheCamchain) {
+  // The board's camera mode is checked against the calibration's rate at start; a rig file
+  // without it skipped that check.
+  RigCalibration rig = sample_rig();
+  rig.cams[0].rate_hz = rig.cams[1].rate_hz = 30.0;
+  const std::string text = recording::format_kalibr_camchain(rig, true);
+  const RigCalibration back = parse_rig_calibration(text, "c.yaml");
+  EXPECT_DOUBLE_EQ(back.cams[0].rate_hz, 30.0);
+  EXPECT_DOUBLE_EQ(back.cams[1].rate_hz, 30.0);
+  rig.cams[0].rate_hz = rig.cams[1].rate_hz = 0.0;  // unknown: no key, read back as unknown
+  const std::string none = recording::format_kalibr_camchain(rig);
+  EXPECT_EQ(none.find("rate_hz"), std::string::npos);
+  EXPECT_DOUBLE_EQ(parse_rig_calibration(none, "c.yaml").cams[0].rate_hz, 0.0);
+  std::string bad = text;
+  bad.replace(bad.find("rate_hz: 30"), 11, "rate_hz: -3");
+  EXPECT_NE(input_error_of([&] {
+              (void)parse_rig_calibration(bad, "c.yaml");
+            }).find("'cam0.rate_hz' must be a frame rate"),
+            std::string::npos);
+}
+
 TEST(CalibrationFiles, TheCameraImuTimeOffsetTravelsInTheCamchain) {
   // `wallar calibrate imu-cam --out` writes Kalibr's timeshift_cam_imu (seconds) beside
   // T_cam_imu; the board's calibration reads it back (the tracker's gyro prior applies it).

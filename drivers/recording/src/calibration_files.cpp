@@ -68,6 +68,12 @@ int pixels(const config::YamlNode& node, double v) {
 CameraCalibration kalibr_camera(const config::YamlNode& cam, int index) {
   CameraCalibration c = detail::read_pinhole_camera(cam, "distortion_coeffs");
   c.name = "cam" + std::to_string(index);
+  // wallar's addition (Kalibr has no camera rate and ignores the key): the board's camera mode
+  // is checked against it at start.
+  if (const config::YamlNode* r = cam.find("rate_hz")) {
+    c.rate_hz = r->as_double();
+    if (!(c.rate_hz > 0.0 && c.rate_hz <= 1000.0)) r->fail("must be a frame rate in (0, 1000] Hz");
+  }
   return c;
 }
 
@@ -217,6 +223,10 @@ std::string format_kalibr_camchain(const RigCalibration& rig, bool with_imu) {
       << (c.distortion_model == "equidistant" ? "equidistant" : "radtan")
       << "\n  distortion_coeffs: " << list(d) << "\n  resolution: [" << c.width_px << ", "
       << c.height_px << "]\n  rostopic: /cam" << i << "/image_raw\n";
+    if (c.rate_hz > 0.0) {
+      s << "  rate_hz: " << format_euroc_double(c.rate_hz)
+        << "  # wallar's: frames per second (the board's camera mode is checked against it)\n";
+    }
   }
   const ImuCalibration& imu = rig.imu;
   if (with_imu && (imu.gyro_noise_density > 0.0 || imu.accel_noise_density > 0.0)) {

@@ -9,7 +9,8 @@
 ///   P1, P2, Q of the rectification). M1/M2 are accepted for K1/K2 (OpenCV's older names).
 /// Kalibr camchain YAML: cam0, cam1 with camera_model pinhole, intrinsics [fu, fv, pu, pv],
 ///   distortion_model radtan (or equidistant), distortion_coeffs, resolution [w, h], cam1's
-///   T_cn_cnm1 (= T_cam1_cam0), and T_cam_imu when the IMU is calibrated too.
+///   T_cn_cnm1 (= T_cam1_cam0), and T_cam_imu when the IMU is calibrated too; wallar adds each
+///   camera's `rate_hz` when known (Kalibr's readers ignore the key).
 /// Rigs read from files without an IMU use the left camera as the body frame, and say so
 /// (RigCalibration::imu_extrinsic_known false) unless the file has `imu_aligned_with_cam0: true`.
 ///
