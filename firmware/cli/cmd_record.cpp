@@ -37,49 +37,41 @@ struct RecordArgs {
   ReplayFlags flags;
 };
 
-std::uint64_t mb_to_bytes(double mb) { return static_cast<std::uint64_t>(mb * 1024.0 * 1024.0); }
-
-// The recording's writer: one EuRoC folder, or rotating segments of one when asked.
+// The recording's writer: one EuRoC folder or MCAP file, or rotating segments when asked.
 std::unique_ptr<recording::RecordingWriter> make_writer(const RecordArgs& args,
                                                         const RigCalibration& rig) {
   const bool mcap = args.format == "mcap" ||
                     (args.format.empty() && std::filesystem::path(args.out).extension() == ".mcap");
-  if (mcap) {
-    if (args.segment_mb > 0.0 || args.max_mb > 0.0) {
-      throw InputError(
-          "wallar record: --segment-mb and --max-mb rotate EuRoC folders; an MCAP "
-          "recording is one file (--format euroc to rotate)");
+  const bool rotate = args.segment_mb > 0.0 || args.max_mb > 0.0;
+  if (!rotate) {
+    if (mcap) {
+      recording::McapRecordingOptions o;
+      o.compression = recording::mcap::parse_compression(args.compression, "--compression");
+      return std::make_unique<recording::McapRecordingWriter>(args.out, rig, o);
     }
-    recording::McapRecordingOptions o;
-    o.compression = recording::mcap::parse_compression(args.compression, "--compression");
-    return std::make_unique<recording::McapRecordingWriter>(args.out, rig, o);
-  }
-  if (args.segment_mb <= 0.0 && args.max_mb <= 0.0) {
     std::error_code ec;
     if (std::filesystem::exists(std::filesystem::path(args.out) / "mav0", ec)) {
       throw_input_error(args.out, 0, "already holds a recording (mav0/); refusing to overwrite it");
     }
     return std::make_unique<recording::EurocWriter>(args.out, rig);
   }
-  if (args.max_mb > 0.0 && args.segment_mb <= 0.0) {
-    throw InputError(
-        "wallar record: --max-mb needs --segment-mb (the size of the segments "
-        "that are deleted, oldest first, to stay under it)");
+  recording::RotationOptions o =
+      recording::rotation_from_mib(args.segment_mb, args.max_mb, "wallar record");
+  if (mcap) {
+    if (std::filesystem::path(args.out).extension() == ".mcap") {
+      throw InputError(
+          "wallar record: --segment-mb writes a folder of segments (OUT/000001.mcap, "
+          "...): give --out a folder and --format mcap");
+    }
+    o.format = recording::RotationOptions::Format::kMcap;
+    o.mcap.compression = recording::mcap::parse_compression(args.compression, "--compression");
   }
-  if (args.max_mb > 0.0 && args.max_mb < 2.0 * args.segment_mb) {
-    throw InputError("wallar record: --max-mb " + std::to_string(args.max_mb) +
-                     " must hold at least two segments of --segment-mb " +
-                     std::to_string(args.segment_mb));
-  }
-  recording::RotationOptions o;
-  o.segment_bytes = mb_to_bytes(args.segment_mb);
-  o.max_total_bytes = mb_to_bytes(args.max_mb);
-  return std::make_unique<recording::RotatingEurocWriter>(args.out, rig, o);
+  return std::make_unique<recording::RotatingWriter>(args.out, rig, o);
 }
 
 // The rotation's figures, when the recording rotates.
 void add_rotation(const recording::RecordingWriter& w, nlohmann::json& report, std::string& text) {
-  const auto* r = dynamic_cast<const recording::RotatingEurocWriter*>(&w);
+  const auto* r = dynamic_cast<const recording::RotatingWriter*>(&w);
   if (r == nullptr) return;
   const recording::RotationCounters& c = r->counters();
   report["rotation"] = {{"segments_started", c.segments_started},
@@ -91,7 +83,7 @@ void add_rotation(const recording::RecordingWriter& w, nlohmann::json& report, s
   text += "  rotation: " + std::to_string(c.segments_started) + " segments, " +
           std::to_string(c.segments_deleted) + " oldest deleted under the cap (" +
           std::to_string(c.bytes_deleted) + " bytes), kept from " +
-          r->segments().front().filename().string() + "/\n";
+          r->segments().front().filename().string() + "\n";
 }
 
 std::string recorder_text(const source::RecorderCounters& c,
@@ -311,8 +303,8 @@ void add_record_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--duration-s", args->duration_s, "Stop after this many seconds (0 = no limit)")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--segment-mb", args->segment_mb,
-                  "Rotate: write OUT/000001, OUT/000002, ... each a whole EuRoC recording, a new "
-                  "one begun at this size in MiB")
+                  "Rotate: write OUT/000001, OUT/000002, ... each a whole EuRoC recording (or "
+                  "OUT/000001.mcap, ... with --format mcap), a new one begun at this size in MiB")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--max-mb", args->max_mb,
                   "With --segment-mb: delete the oldest segments while all hold more than this "

@@ -18,6 +18,7 @@
 #include "wallar/drivers/recording/calibration_files.hpp"
 #include "wallar/drivers/recording/euroc.hpp"
 #include "wallar/drivers/recording/mcap_recording.hpp"
+#include "wallar/drivers/recording/rotating_writer.hpp"
 #include "wallar/drivers/recording/tum_trajectory.hpp"
 #include "wallar/drivers/source/async_recorder.hpp"
 #include "wallar/firmware/appliance.hpp"
@@ -49,7 +50,9 @@ struct RunArgs {
   std::uint64_t seed = 1;
   std::string keys;
   std::string live;    // [ADDRESS:]PORT
-  std::string record;  // FILE.mcap
+  std::string record;  // FILE.mcap, or a folder of segments
+  double record_segment_mb = 0.0;
+  double record_max_mb = 0.0;
   bool no_live = false;
   ReplayFlags flags;
 };
@@ -201,16 +204,30 @@ int run_run_command(const RunArgs& args) {
 
   // --record FILE.mcap: the sensor streams as the source delivers them (the recorder's rings:
   // a full ring drops and counts, never waits), then the run's outputs.
-  std::unique_ptr<recording::McapRecordingWriter> record_writer;
+  std::unique_ptr<recording::RecordingWriter> record_writer;
   std::unique_ptr<source::AsyncRecorder> recorder;
   source::AsyncRecorderOptions record_options;
+  const bool rotate = args.record_segment_mb > 0.0 || args.record_max_mb > 0.0;
+  if (rotate && args.record.empty()) throw InputError("--record-segment-mb: needs --record");
   if (!args.record.empty()) {
-    if (fs::path(args.record).extension() != ".mcap") {
+    const bool mcap_name = fs::path(args.record).extension() == ".mcap";
+    if (!rotate && !mcap_name) {
       throw InputError("--record: '" + args.record +
                        "' is not an .mcap file (`wallar record` writes EuRoC folders)");
     }
+    if (rotate && mcap_name) {
+      throw InputError("--record-segment-mb writes a folder of segments (" + args.record +
+                       "/000001.mcap, ...): name the folder without .mcap");
+    }
     const RigCalibration rig = board_rig(board);
-    record_writer = std::make_unique<recording::McapRecordingWriter>(args.record, rig);
+    if (rotate) {
+      recording::RotationOptions o = recording::rotation_from_mib(
+          args.record_segment_mb, args.record_max_mb, "wallar run --record");
+      o.format = recording::RotationOptions::Format::kMcap;
+      record_writer = std::make_unique<recording::RotatingWriter>(args.record, rig, o);
+    } else {
+      record_writer = std::make_unique<recording::McapRecordingWriter>(args.record, rig);
+    }
     for (std::size_t i = 0; i < 2; ++i) {
       record_options.width_px[i] = rig.cams[i].width_px;
       record_options.height_px[i] = rig.cams[i].height_px;
@@ -242,10 +259,24 @@ int run_run_command(const RunArgs& args) {
   if (report.view.view.written > 0) outputs.push_back("view/");
   if (recorder) {
     const source::RecorderCounters c = recorder->close();
-    if (c.error.empty()) firmware::write_outputs_mcap(*record_writer, out);
+    // The outputs go into the file, or the last segment.
+    auto* rotating = dynamic_cast<recording::RotatingWriter*>(record_writer.get());
+    recording::McapRecordingWriter* outputs_to =
+        rotating != nullptr ? rotating->current_mcap()
+                            : static_cast<recording::McapRecordingWriter*>(record_writer.get());
+    if (c.error.empty()) firmware::write_outputs_mcap(*outputs_to, out);
     record_writer->close();
     summary["record"] = firmware::to_json(c, record_options);
     summary["record"]["file"] = args.record;
+    if (rotating != nullptr) {
+      const recording::RotationCounters& rc = rotating->counters();
+      nlohmann::json kept = nlohmann::json::array();
+      for (const fs::path& p : rotating->segments()) kept.push_back(p.filename().string());
+      summary["record"]["rotation"] = {{"segments_started", rc.segments_started},
+                                       {"segments_deleted", rc.segments_deleted},
+                                       {"bytes_deleted", rc.bytes_deleted},
+                                       {"kept", kept}};
+    }
     summary["record"]["imu_rows"] = c.imu_written;
     summary["record"]["cam_rows"] = c.frames_written;
     summary["record"]["outputs"] = c.error.empty();
@@ -345,6 +376,14 @@ void add_run_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--record", args->record,
                   "Record the run in one MCAP file: the sensor streams as they come (images, "
                   "IMU), then the run's /pose, /tf, /map and /walls (as `wallar track --mcap`)");
+  cmd->add_option("--record-segment-mb", args->record_segment_mb,
+                  "With --record DIR: rotate, DIR/000001.mcap, DIR/000002.mcap, ... a new "
+                  "segment at this size in MiB (the outputs go into the last one)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--record-max-mb", args->record_max_mb,
+                  "With --record-segment-mb: delete the oldest segments while all hold more "
+                  "than this (MiB): a long session keeps the latest that fits")
+      ->check(CLI::PositiveNumber);
   cmd->add_flag("--no-live", args->no_live, "Do not serve live, whatever the board says")
       ->excludes(cmd->get_option("--live"));
   add_replay_flags(*cmd, args->flags);

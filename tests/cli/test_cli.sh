@@ -377,6 +377,13 @@ run_record)
   expect_rc 2; one_err_line; expect_err "run.mcap"  # it exists: never overwritten
   run run --board "$src/board/sim.yaml" --record "$tmp/folder" --no-view --out "$tmp/o"
   expect_rc 2; one_err_line; expect_err "is not an .mcap file"
+  # Rotating: 1 MiB segments under a 3 MiB cap; the outputs in the last segment kept.
+  run run --board "$src/board/sim.yaml" --record "$tmp/segs" --record-segment-mb 1 \
+    --record-max-mb 3 --no-view --json --out "$tmp/o"; expect_rc 0
+  [ "$(json "d['record']['rotation']['segments_deleted'] >= 1")" = True ] || fail "rotation: $(json "d['record']")"
+  last=$(ls "$tmp"/segs/*.mcap | tail -1)
+  node "$src/tests/cli/mcap_reference.cjs" "$src/tools/node" "$last" /pose=$tracked /map=1 /walls=1 \
+    >/dev/null || fail "the outputs are not in the last segment"
   ;;
 run_signals)
   # SIGUSR1 prints the stats table while running; SIGINT stops cleanly with exit code 130.
@@ -1055,8 +1062,22 @@ PY
   imu_rows=$(json "d['imu_rows']"); cam_rows=$(json "d['cam_rows'][0]")
   [ "$imu_rows" = 491 ] && [ "$cam_rows" = 40 ] || fail "recorded $imu_rows / $cam_rows"
   ref "$tmp/rec.mcap" /cam0=$cam_rows /cam1=40 /imu0=$imu_rows >/dev/null || fail "recording refused"
-  run record --board "$src/board/sim.yaml" --out "$tmp/rec2" --format mcap --segment-mb 5
-  expect_rc 2; one_err_line; expect_err "one file"
+  # Rotating MCAP: 2 MiB segments under a 5 MiB cap, each a whole file Foxglove's reader
+  # accepts; the last ends with the clip.
+  run record --board "$src/board/sim.yaml" --out "$tmp/rot" --format mcap --fast --segment-mb 2 \
+    --max-mb 5 --json; expect_rc 0
+  [ "$(json "d['rotation']['segments_deleted'] >= 2")" = True ] || fail "mcap segments deleted: $(cat "$tmp/out")"
+  [ "$(du -s --apparent-size -k "$tmp/rot" | cut -f1)" -le $((8 * 1024)) ] || fail "mcap over the cap"
+  for seg in "$tmp"/rot/*.mcap; do
+    ref --stream "$seg" >/dev/null || fail "segment $seg refused"
+    run replay "$seg" --stats --fast --no-images; expect_rc 0; expect_out "unpaired left 0, right 0"
+  done
+  run replay "$(ls "$tmp"/rot/*.mcap | tail -1)" --stats --fast --no-images --json; expect_rc 0
+  [ "$(json "d['replay']['last_t_ns']")" = "$(tail -1 "$rec/mav0/cam0/data.csv" | cut -d, -f1)" ] ||
+    [ "$(json "d['replay']['last_t_ns'] >= $(tail -1 "$rec/mav0/cam0/data.csv" | cut -d, -f1)")" = True ] ||
+    fail "the last segment ends early"
+  run record --board "$src/board/sim.yaml" --out "$tmp/rec2.mcap" --segment-mb 5
+  expect_rc 2; one_err_line; expect_err "give --out a folder"
   # Power loss: 20 cuts at seeded random bytes; the reference's stream reader says what each
   # holds (one node run for all), wallar replays each.
   size=$(stat -c %s "$tmp/still.mcap")

@@ -92,7 +92,8 @@ inline RigCalibration small_rig() {
 
 /// Writes `pairs` stereo frames (t = 1 s + k * 50 ms), each after its 10 IMU rows, with seeded
 /// random content, and closes the writer.
-inline void write_small_stream(recording::RecordingWriter& writer, int pairs, unsigned seed) {
+inline void write_small_stream(recording::RecordingWriter& writer, int pairs, unsigned seed,
+                               bool close = true) {
   std::mt19937 rng(seed);
   std::uniform_int_distribution<int> pixel(0, 255);
   std::normal_distribution<double> noise(0.0, 0.01);
@@ -115,7 +116,7 @@ inline void write_small_stream(recording::RecordingWriter& writer, int pairs, un
     }
     writer.write_stereo(f);
   }
-  writer.close();
+  if (close) writer.close();
 }
 /// The same as a recording; returns its root.
 inline fs::path write_small_recording(const fs::path& root, int pairs = 4, unsigned seed = 7) {

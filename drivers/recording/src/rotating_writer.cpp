@@ -13,12 +13,32 @@ namespace wallar::recording {
 namespace fs = std::filesystem;
 
 namespace {
+// 000001 (a EuRoC folder) or 000001.mcap.
 bool is_segment_name(const std::string& name) {
-  return name.size() == 6 && name.find_first_not_of("0123456789") == std::string::npos;
+  const std::string stem = name.size() == 11 && name.ends_with(".mcap") ? name.substr(0, 6) : name;
+  return stem.size() == 6 && stem.find_first_not_of("0123456789") == std::string::npos;
 }
 }  // namespace
 
-RotatingEurocWriter::RotatingEurocWriter(fs::path root, RigCalibration rig, RotationOptions options)
+RotationOptions rotation_from_mib(double segment_mib, double max_mib, const std::string& what) {
+  if (max_mib > 0.0 && segment_mib <= 0.0) {
+    throw InputError(what +
+                     ": --max-mb needs --segment-mb (the size of the segments that are deleted, "
+                     "oldest first, to stay under it)");
+  }
+  if (max_mib > 0.0 && max_mib < 2.0 * segment_mib) {
+    throw InputError(what + ": --max-mb " + std::to_string(max_mib) +
+                     " must hold at least two segments of --segment-mb " +
+                     std::to_string(segment_mib));
+  }
+  const auto bytes = [](double mib) { return static_cast<std::uint64_t>(mib * 1024.0 * 1024.0); };
+  RotationOptions o;
+  o.segment_bytes = bytes(segment_mib);
+  o.max_total_bytes = bytes(max_mib);
+  return o;
+}
+
+RotatingWriter::RotatingWriter(fs::path root, RigCalibration rig, RotationOptions options)
     : root_(std::move(root)), rig_(std::move(rig)), options_(options) {
   std::error_code ec;
   if (fs::exists(root_ / "mav0", ec)) {
@@ -30,36 +50,53 @@ RotatingEurocWriter::RotatingEurocWriter(fs::path root, RigCalibration rig, Rota
       if (is_segment_name(e.path().filename().string())) {
         throw_input_error(root_.string(), 0,
                           "already holds recording segments (" + e.path().filename().string() +
-                              "/); refusing to rotate over them");
+                              "); refusing to rotate over them");
       }
     }
   }
   start_segment();
 }
 
-void RotatingEurocWriter::start_segment() {
+void RotatingWriter::start_segment() {
   char name[16];
   std::snprintf(name, sizeof name, "%06llu",
                 static_cast<unsigned long long>(counters_.segments_started + 1));  // NOLINT
-  current_dir_ = root_ / name;
-  current_ = std::make_unique<EurocWriter>(current_dir_, rig_, options_.writer);
+  if (options_.format == RotationOptions::Format::kMcap) {
+    std::error_code ec;
+    fs::create_directories(root_, ec);
+    if (ec) throw_input_error(root_.string(), 0, "cannot create the folder: " + ec.message());
+    current_dir_ = root_ / (std::string(name) + ".mcap");
+    mcap_ = std::make_unique<McapRecordingWriter>(current_dir_, rig_, options_.mcap);
+    current_ = mcap_.get();
+  } else {
+    current_dir_ = root_ / name;
+    euroc_ = std::make_unique<EurocWriter>(current_dir_, rig_, options_.writer);
+    current_ = euroc_.get();
+  }
   ++counters_.segments_started;
 }
 
-void RotatingEurocWriter::rotate_if_full() {
-  if (options_.segment_bytes > 0 && current_->bytes_written() >= options_.segment_bytes) {
+std::uint64_t RotatingWriter::current_bytes() const {
+  return mcap_ ? mcap_->bytes_written() : euroc_->bytes_written();
+}
+
+void RotatingWriter::rotate_if_full() {
+  if (options_.segment_bytes > 0 && current_bytes() >= options_.segment_bytes) {
     current_->close();
-    closed_.push_back({current_dir_, current_->bytes_written()});
-    closed_bytes_ += current_->bytes_written();
-    current_.reset();
+    const std::uint64_t bytes = current_bytes();  // an MCAP file's summary and footer too
+    closed_.push_back({current_dir_, bytes});
+    closed_bytes_ += bytes;
+    euroc_.reset();
+    mcap_.reset();
+    current_ = nullptr;
     start_segment();
   }
   enforce_cap();
 }
 
-void RotatingEurocWriter::enforce_cap() {
+void RotatingWriter::enforce_cap() {
   if (options_.max_total_bytes == 0) return;
-  while (!closed_.empty() && closed_bytes_ + current_->bytes_written() > options_.max_total_bytes) {
+  while (!closed_.empty() && closed_bytes_ + current_bytes() > options_.max_total_bytes) {
     const Closed oldest = closed_.front();
     closed_.pop_front();
     closed_bytes_ -= oldest.bytes;
@@ -74,27 +111,25 @@ void RotatingEurocWriter::enforce_cap() {
   }
 }
 
-void RotatingEurocWriter::write_imu(const ImuSample& sample) {
+void RotatingWriter::write_imu(const ImuSample& sample) {
   rotate_if_full();
   current_->write_imu(sample);
 }
 
-void RotatingEurocWriter::write_camera(int cam, const CameraFrame& frame) {
+void RotatingWriter::write_camera(int cam, const CameraFrame& frame) {
   if (cam == 0) rotate_if_full();  // a pair's right image stays with its left one
   current_->write_camera(cam, frame);
 }
 
-void RotatingEurocWriter::close() { current_->close(); }
+void RotatingWriter::close() { current_->close(); }
 
-std::deque<fs::path> RotatingEurocWriter::segments() const {
+std::deque<fs::path> RotatingWriter::segments() const {
   std::deque<fs::path> out;
   for (const Closed& c : closed_) out.push_back(c.dir);
   out.push_back(current_dir_);
   return out;
 }
 
-std::uint64_t RotatingEurocWriter::total_bytes() const {
-  return closed_bytes_ + current_->bytes_written();
-}
+std::uint64_t RotatingWriter::total_bytes() const { return closed_bytes_ + current_bytes(); }
 
 }  // namespace wallar::recording

@@ -183,7 +183,7 @@ struct EurocWriterOptions {
 };
 
 /// Where recorded samples go: one EuRoC recording (EurocWriter) or a rotation of them
-/// (RotatingEurocWriter, rotating_writer.hpp). Threading: one thread uses a writer.
+/// (RotatingWriter, rotating_writer.hpp). Threading: one thread uses a writer.
 class RecordingWriter {
  public:
   virtual ~RecordingWriter() = default;
