@@ -231,6 +231,10 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
     report.display = view->display();
     tracker->set_view(view.get());
   }
+  // `wallar run --record`: the samples go to the recorder too (never waiting for it). Before
+  // the source, so that it outlives the source's threads.
+  std::optional<RecordingTee> tee;
+  if (options.record != nullptr) tee.emplace(pipeline, *options.record);
   std::unique_ptr<SourceModule> source;
   ReplayModule* replay_module = nullptr;
   if (replay) {
@@ -252,9 +256,6 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
         reconstruction, map_channel, pose, options.reconstruct_period_ns,
         thread_spec("reconstruct", realtime, &board), stop_modules);
   }
-  // `wallar run --record`: the samples go to the recorder too (never waiting for it).
-  std::optional<RecordingTee> tee;
-  if (options.record != nullptr) tee.emplace(pipeline, *options.record);
   source::SensorSink& sink = tee ? static_cast<source::SensorSink&>(*tee) : pipeline;
   drivers::ImuSampleSink& imu_sink = tee ? static_cast<drivers::ImuSampleSink&>(*tee) : pipeline;
   try {
