@@ -34,10 +34,6 @@ json number() { return {{"type", "number"}}; }
 json object(const char* title, json properties) {
   return {{"title", title}, {"type", "object"}, {"properties", std::move(properties)}};
 }
-json time_schema() {
-  return object("time", {{"sec", {{"type", "integer"}, {"minimum", 0}}},
-                         {"nsec", {{"type", "integer"}, {"minimum", 0}, {"maximum", 999999999}}}});
-}
 json vector3_schema() {
   return object("foxglove.Vector3", {{"x", number()}, {"y", number()}, {"z", number()}});
 }
@@ -85,7 +81,7 @@ bool inside_convex(const std::vector<Eigen::Vector2d>& poly, const Eigen::Vector
 }  // namespace
 
 Schema pose_in_frame_schema() {
-  return {"foxglove.PoseInFrame", object("foxglove.PoseInFrame", {{"timestamp", time_schema()},
+  return {"foxglove.PoseInFrame", object("foxglove.PoseInFrame", {{"timestamp", fj::time_schema()},
                                                                   {"frame_id", string_schema()},
                                                                   {"pose", pose_schema()}})
                                       .dump()};
@@ -93,7 +89,7 @@ Schema pose_in_frame_schema() {
 
 Schema frame_transform_schema() {
   return {"foxglove.FrameTransform",
-          object("foxglove.FrameTransform", {{"timestamp", time_schema()},
+          object("foxglove.FrameTransform", {{"timestamp", fj::time_schema()},
                                              {"parent_frame_id", string_schema()},
                                              {"child_frame_id", string_schema()},
                                              {"translation", vector3_schema()},
@@ -108,7 +104,7 @@ Schema point_cloud_schema() {
                              {"type", {{"type", "integer"}, {"description", "7 = FLOAT32"}}}});
   return {
       "foxglove.PointCloud",
-      object("foxglove.PointCloud", {{"timestamp", time_schema()},
+      object("foxglove.PointCloud", {{"timestamp", fj::time_schema()},
                                      {"frame_id", string_schema()},
                                      {"pose", pose_schema()},
                                      {"point_stride", {{"type", "integer"}, {"minimum", 0}}},
@@ -142,7 +138,7 @@ Schema scene_update_schema() {
   const json kv =
       object("foxglove.KeyValuePair", {{"key", string_schema()}, {"value", string_schema()}});
   const json entity = object("foxglove.SceneEntity",
-                             {{"timestamp", time_schema()},
+                             {{"timestamp", fj::time_schema()},
                               {"frame_id", string_schema()},
                               {"id", string_schema()},
                               {"lifetime", object("duration", {{"sec", {{"type", "integer"}}},
@@ -159,7 +155,7 @@ Schema scene_update_schema() {
                               {"models", array_of({{"type", "object"}})}});
   const json deletion =
       object("foxglove.SceneEntityDeletion",
-             {{"timestamp", time_schema()},
+             {{"timestamp", fj::time_schema()},
               {"type", {{"type", "integer"}, {"description", "0 = MATCHING_ID, 1 = ALL"}}},
               {"id", string_schema()}});
   return {"foxglove.SceneUpdate", object("foxglove.SceneUpdate", {{"deletions", array_of(deletion)},
@@ -284,7 +280,7 @@ std::string scene_update(TimeNs t_ns, const std::vector<Wall>& walls, bool repla
 }
 
 Schema frame_transforms_schema() {
-  const json one = object("foxglove.FrameTransform", {{"timestamp", time_schema()},
+  const json one = object("foxglove.FrameTransform", {{"timestamp", fj::time_schema()},
                                                       {"parent_frame_id", string_schema()},
                                                       {"child_frame_id", string_schema()},
                                                       {"translation", vector3_schema()},
@@ -296,25 +292,19 @@ Schema frame_transforms_schema() {
 
 Schema poses_in_frame_schema() {
   return {"foxglove.PosesInFrame",
-          object("foxglove.PosesInFrame", {{"timestamp", time_schema()},
+          object("foxglove.PosesInFrame", {{"timestamp", fj::time_schema()},
                                            {"frame_id", string_schema()},
                                            {"poses", array_of(pose_schema())}})
               .dump()};
 }
 
 Schema compressed_image_schema() {
-  json s = object("foxglove.CompressedImage",
-                  {{"timestamp", time_schema()},
-                   {"frame_id", string_schema()},
-                   {"data", {{"type", "string"}, {"contentEncoding", "base64"}}},
-                   {"format", {{"type", "string"}, {"description", "jpeg or png"}}}});
-  s["required"] = {"timestamp", "frame_id", "data", "format"};
-  return {"foxglove.CompressedImage", s.dump()};
+  return {"foxglove.CompressedImage", fj::compressed_image_schema().dump()};
 }
 
 Schema log_schema() {
   json s =
-      object("foxglove.Log", {{"timestamp", time_schema()},
+      object("foxglove.Log", {{"timestamp", fj::time_schema()},
                               {"level",
                                {{"type", "integer"},
                                 {"description", "1 DEBUG, 2 INFO, 3 WARNING, 4 ERROR, 5 FATAL"},
@@ -347,7 +337,7 @@ Schema stats_schema() {
                                {"misses", {{"type", "integer"}}},
                                {"allocations_after_start", {{"type", {"integer", "null"}}}},
                                {"note", string_schema()}});
-  json s = object("wallar.Stats", {{"timestamp", time_schema()},
+  json s = object("wallar.Stats", {{"timestamp", fj::time_schema()},
                                    {"threads", array_of(thread)},
                                    {"stages", array_of(latency)},
                                    {"live", {{"type", "object"}}}});

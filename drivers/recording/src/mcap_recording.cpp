@@ -27,35 +27,12 @@ constexpr const char* kGroundTruthTopic = "/ground_truth";
 
 // ---- schemas ----------------------------------------------------------------------------------
 
-json time_schema() {
-  return {{"type", "object"},
-          {"title", "time"},
-          {"properties",
-           {{"sec", {{"type", "integer"}, {"minimum", 0}}},
-            {"nsec", {{"type", "integer"}, {"minimum", 0}, {"maximum", 999999999}}}}}};
-}
-
 json vector3_schema(const std::string& description) {
   json number = {{"type", "number"}};
   return {{"type", "object"},
           {"title", "foxglove.Vector3"},
           {"description", description},
           {"properties", {{"x", number}, {"y", number}, {"z", number}}}};
-}
-
-// Foxglove's CompressedImage, as its published JSON Schema describes it.
-std::string compressed_image_schema() {
-  const json s = {
-      {"title", "foxglove.CompressedImage"},
-      {"description", "A compressed image"},
-      {"type", "object"},
-      {"properties",
-       {{"timestamp", time_schema()},
-        {"frame_id", {{"type", "string"}, {"description", "Frame of reference for the image"}}},
-        {"data",
-         {{"type", "string"}, {"contentEncoding", "base64"}, {"description", "Compressed image"}}},
-        {"format", {{"type", "string"}, {"description", "Image format: png"}}}}}};
-  return s.dump();
 }
 
 // Foxglove's CameraCalibration (its published JSON Schema, with the fields it lists as required).
@@ -73,7 +50,7 @@ std::string camera_calibration_schema() {
       {"description", "Camera calibration parameters"},
       {"type", "object"},
       {"properties",
-       {{"timestamp", time_schema()},
+       {{"timestamp", fj::time_schema()},
         {"frame_id", {{"type", "string"}, {"description", "Frame of reference for the camera"}}},
         {"width", {{"type", "integer"}, {"minimum", 0}, {"description", "Image width"}}},
         {"height", {{"type", "integer"}, {"minimum", 0}, {"description", "Image height"}}},
@@ -119,7 +96,7 @@ std::string imu_schema() {
       {"description", "One IMU sample in the body (IMU) frame"},
       {"type", "object"},
       {"properties",
-       {{"timestamp", time_schema()},
+       {{"timestamp", fj::time_schema()},
         {"frame_id", {{"type", "string"}}},
         {"angular_velocity", vector3_schema("angular rate [rad/s]")},
         {"linear_acceleration", vector3_schema("specific force [m/s^2]")},
@@ -135,7 +112,7 @@ std::string ground_truth_schema() {
       {"description", "The body's pose in the world frame, its velocity and the IMU biases"},
       {"type", "object"},
       {"properties",
-       {{"timestamp", time_schema()},
+       {{"timestamp", fj::time_schema()},
         {"frame_id", {{"type", "string"}}},
         {"position", vector3_schema("body origin in the world frame [m]")},
         {"orientation",
@@ -351,7 +328,7 @@ McapRecordingWriter::McapRecordingWriter(const fs::path& path, const RigCalibrat
   if (rig.imu.rate_hz > 0.0) rig_files["imu0/sensor.yaml"] = format_imu_sensor_yaml(rig.imu);
   writer_->add_metadata(kRigMetadata, rig_files);
   const std::uint16_t image = writer_->add_schema("foxglove.CompressedImage", "jsonschema",
-                                                  bytes_of(compressed_image_schema()));
+                                                  bytes_of(fj::compressed_image_schema().dump()));
   const std::uint16_t calibration = writer_->add_schema("foxglove.CameraCalibration", "jsonschema",
                                                         bytes_of(camera_calibration_schema()));
   for (int i = 0; i < 2; ++i) {
