@@ -67,13 +67,16 @@ void RotatingWriter::start_segment() {
     if (ec) throw_input_error(root_.string(), 0, "cannot create the folder: " + ec.message());
     current_dir_ = root_ / (std::string(name) + ".mcap");
     mcap_ = std::make_unique<McapRecordingWriter>(current_dir_, rig_, options_.mcap);
-    current_ = mcap_.get();
   } else {
     current_dir_ = root_ / name;
     euroc_ = std::make_unique<EurocWriter>(current_dir_, rig_, options_.writer);
-    current_ = euroc_.get();
   }
   ++counters_.segments_started;
+}
+
+RecordingWriter& RotatingWriter::current() {
+  if (mcap_) return *mcap_;
+  return *euroc_;
 }
 
 std::uint64_t RotatingWriter::current_bytes() const {
@@ -82,13 +85,12 @@ std::uint64_t RotatingWriter::current_bytes() const {
 
 void RotatingWriter::rotate_if_full() {
   if (options_.segment_bytes > 0 && current_bytes() >= options_.segment_bytes) {
-    current_->close();
+    current().close();
     const std::uint64_t bytes = current_bytes();  // an MCAP file's summary and footer too
     closed_.push_back({current_dir_, bytes});
     closed_bytes_ += bytes;
     euroc_.reset();
     mcap_.reset();
-    current_ = nullptr;
     start_segment();
   }
   enforce_cap();
@@ -113,15 +115,15 @@ void RotatingWriter::enforce_cap() {
 
 void RotatingWriter::write_imu(const ImuSample& sample) {
   rotate_if_full();
-  current_->write_imu(sample);
+  current().write_imu(sample);
 }
 
 void RotatingWriter::write_camera(int cam, const CameraFrame& frame) {
   if (cam == 0) rotate_if_full();  // a pair's right image stays with its left one
-  current_->write_camera(cam, frame);
+  current().write_camera(cam, frame);
 }
 
-void RotatingWriter::close() { current_->close(); }
+void RotatingWriter::close() { current().close(); }
 
 std::deque<fs::path> RotatingWriter::segments() const {
   std::deque<fs::path> out;

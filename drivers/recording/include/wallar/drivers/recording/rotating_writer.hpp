@@ -81,12 +81,12 @@ class RotatingWriter final : public RecordingWriter {
   RotationOptions options_;
   std::deque<Closed> closed_;
   std::uint64_t closed_bytes_ = 0;
-  std::filesystem::path current_dir_;  // the current segment (a folder, or an .mcap file)
-  std::unique_ptr<EurocWriter> euroc_;
+  std::filesystem::path current_dir_;   // the current segment (a folder, or an .mcap file)
+  std::unique_ptr<EurocWriter> euroc_;  // the current segment: one of the two is open
   std::unique_ptr<McapRecordingWriter> mcap_;
-  RecordingWriter* current_ = nullptr;  // whichever of the two is open
   RotationCounters counters_;
 
+  [[nodiscard]] RecordingWriter& current();
   [[nodiscard]] std::uint64_t current_bytes() const;
 };
 
