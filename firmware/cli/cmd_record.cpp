@@ -74,12 +74,7 @@ void add_rotation(const recording::RecordingWriter& w, nlohmann::json& report, s
   const auto* r = dynamic_cast<const recording::RotatingWriter*>(&w);
   if (r == nullptr) return;
   const recording::RotationCounters& c = r->counters();
-  report["rotation"] = {{"segments_started", c.segments_started},
-                        {"segments_kept", r->segments().size()},
-                        {"segments_deleted", c.segments_deleted},
-                        {"bytes_deleted", c.bytes_deleted},
-                        {"delete_errors", c.delete_errors},
-                        {"first_kept", r->segments().front().filename().string()}};
+  report["rotation"] = firmware::to_json(*r);
   text += "  rotation: " + std::to_string(c.segments_started) + " segments, " +
           std::to_string(c.segments_deleted) + " oldest deleted under the cap (" +
           std::to_string(c.bytes_deleted) + " bytes), kept from " +

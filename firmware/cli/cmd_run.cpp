@@ -268,15 +268,7 @@ int run_run_command(const RunArgs& args) {
     record_writer->close();
     summary["record"] = firmware::to_json(c, record_options);
     summary["record"]["file"] = args.record;
-    if (rotating != nullptr) {
-      const recording::RotationCounters& rc = rotating->counters();
-      nlohmann::json kept = nlohmann::json::array();
-      for (const fs::path& p : rotating->segments()) kept.push_back(p.filename().string());
-      summary["record"]["rotation"] = {{"segments_started", rc.segments_started},
-                                       {"segments_deleted", rc.segments_deleted},
-                                       {"bytes_deleted", rc.bytes_deleted},
-                                       {"kept", kept}};
-    }
+    if (rotating != nullptr) summary["record"]["rotation"] = firmware::to_json(*rotating);
     summary["record"]["imu_rows"] = c.imu_written;
     summary["record"]["cam_rows"] = c.frames_written;
     summary["record"]["outputs"] = c.error.empty();

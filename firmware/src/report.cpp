@@ -52,6 +52,19 @@ nlohmann::json to_json(const source::ReplayStats& s) {
           {"stopped", s.stopped}};
 }
 
+nlohmann::json to_json(const recording::RotatingWriter& r) {
+  const recording::RotationCounters& c = r.counters();
+  nlohmann::json kept = nlohmann::json::array();
+  for (const std::filesystem::path& p : r.segments()) kept.push_back(p.filename().string());
+  return {{"segments_started", c.segments_started},
+          {"segments_kept", kept.size()},
+          {"segments_deleted", c.segments_deleted},
+          {"bytes_deleted", c.bytes_deleted},
+          {"delete_errors", c.delete_errors},
+          {"first_kept", kept.front()},
+          {"kept", kept}};
+}
+
 nlohmann::json to_json(const source::RecorderCounters& c, const source::AsyncRecorderOptions& o) {
   return {{"imu_dropped", c.imu_dropped},           {"frames_dropped", c.frames_dropped},
           {"imu_high_water", c.imu_high_water},     {"imu_capacity", o.imu_capacity},

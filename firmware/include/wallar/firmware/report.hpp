@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "wallar/drivers/recording/rotating_writer.hpp"
 #include "wallar/drivers/recording/stream_stats.hpp"
 #include "wallar/drivers/source/async_recorder.hpp"
 #include "wallar/drivers/source/replay_source.hpp"
@@ -24,6 +25,8 @@ nlohmann::json to_json(const source::ReplayStats& s);
 /// What a recorder did (drops, high water against capacity, write errors), as `wallar record`
 /// and `wallar run --record` report it.
 nlohmann::json to_json(const source::RecorderCounters& c, const source::AsyncRecorderOptions& o);
+/// A rotating recording's segments: started, kept (names), deleted under the cap.
+nlohmann::json to_json(const recording::RotatingWriter& r);
 
 /// The `wallar walls` schema: {"surfaces":[{"id","kind","normal","d","inliers","backliers",
 /// "score","rmse_m","extent"}], "rounds", "points"}.
