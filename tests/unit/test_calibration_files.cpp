@@ -156,6 +156,45 @@ TEST(CalibrationFiles, TheCameraImuTimeOffsetTravelsInTheCamchain) {
       << error;
 }
 
+TEST(CalibrationFiles, TheAccelerometerBiasAndMagnetometerIronTravelInTheRigAndSensorYaml) {
+  // `wallar calibrate accel-mag --out` writes them into imu0/sensor.yaml; `calibrate imu-cam
+  // --imu` carries them into the rig file; both read back bit for bit, and files without them
+  // stay as they were.
+  RigCalibration rig = sample_rig();
+  rig.imu.rate_hz = 200.0;
+  rig.imu.gyro_noise_density = 2.6e-4;
+  rig.imu.accel_noise_density = 2.3e-3;
+  EXPECT_EQ(recording::format_kalibr_camchain(rig, true).find("accelerometer_bias"),
+            std::string::npos);
+  EXPECT_EQ(recording::format_imu_sensor_yaml(rig.imu).find("magnetometer"), std::string::npos);
+  rig.imu.accel_bias_m_s2 = Eigen::Vector3d(0.0123, -0.0456, 0.1 / 3.0);
+  rig.imu.mag_hard_iron_uT = Eigen::Vector3d(26.5, -21.25, 1.0 / 7.0);
+  rig.imu.mag_soft_iron << 0.98, 0.063, 0.017, 0.063, 0.99, 0.038, 0.017, 0.038, 1.0 / 0.97;
+  const RigCalibration back =
+      parse_rig_calibration(recording::format_kalibr_camchain(rig, true), "rig.yaml");
+  const ImuCalibration imu =
+      recording::parse_imu_sensor_yaml(recording::format_imu_sensor_yaml(rig.imu), "s.yaml");
+  for (const ImuCalibration* c : {&back.imu, &imu}) {
+    EXPECT_EQ(c->accel_bias_m_s2, rig.imu.accel_bias_m_s2);
+    EXPECT_EQ(c->mag_hard_iron_uT, rig.imu.mag_hard_iron_uT);
+    EXPECT_EQ(c->mag_soft_iron, rig.imu.mag_soft_iron);
+  }
+  // A soft iron that cannot be inverted, and a bias no accelerometer has, are named.
+  std::string bad = recording::format_imu_sensor_yaml(rig.imu);
+  const std::size_t at = bad.find("magnetometer_soft_iron: ") + 24;
+  bad.replace(at, bad.find('\n', at) - at, "[1, 0, 0, 0, 1, 0, 0, 0, 0]");
+  std::string error =
+      input_error_of([&] { (void)recording::parse_imu_sensor_yaml(bad, "s.yaml"); });
+  EXPECT_NE(error.find("magnetometer_soft_iron' must be an invertible 3x3 matrix"),
+            std::string::npos)
+      << error;
+  bad = recording::format_imu_sensor_yaml(rig.imu);
+  const std::size_t b = bad.find("accelerometer_bias: ") + 20;
+  bad.replace(b, bad.find('\n', b) - b, "[9.81, 0, 0]");
+  error = input_error_of([&] { (void)recording::parse_imu_sensor_yaml(bad, "s.yaml"); });
+  EXPECT_NE(error.find("accelerometer_bias' is over 5 m/s^2"), std::string::npos) << error;
+}
+
 TEST(CalibrationFiles, AStereoOnlyFileSaysThatItDoesNotKnowWhereTheImuIs) {
   // A stereo calibration (cam0 as the body) cannot tell an IMU's frame: the flag says so, and a
   // live board with an IMU refuses it (cli.record_live). Kalibr's T_cam_imu, a EuRoC folder's

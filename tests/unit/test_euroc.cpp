@@ -87,6 +87,44 @@ TEST(EurocWriter, WritesWhatTheReaderReadsBack) {
   }
 }
 
+TEST(EurocWriter, TheMagnetometerGoesBesideImu0AndComesBackOnItsSamples) {
+  // Nothing recorded is lost: an ICM-20948's field readings (every second sample here) go to
+  // mav0/mag0/data.csv and come back on the samples that carried them, exactly.
+  TempDir tmp;
+  {
+    recording::EurocWriter writer(tmp.path(), small_rig());
+    for (int k = 0; k < 20; ++k) {
+      ImuSample s;
+      s.t_ns = 1'000'000'000 + k * 5'000'000;
+      s.accel_m_s2 = Eigen::Vector3d(0.0, 0.0, 9.81);
+      if (k % 2 == 0) s.mag_uT = Eigen::Vector3d(20.0 + 0.1 * k, -3.25, -43.0 - 1.0 / (k + 3));
+      writer.write_imu(s);
+    }
+    EXPECT_EQ(writer.mag_written(), 10u);
+  }
+  for (const EurocRecording& rec :
+       {recording::read_euroc_imu(tmp.path()), read_euroc(tmp.path())}) {
+    ASSERT_EQ(rec.imu.size(), 20u);
+    for (int k = 0; k < 20; ++k) {
+      const ImuSample& s = rec.imu[static_cast<std::size_t>(k)];
+      ASSERT_EQ(s.mag_uT.has_value(), k % 2 == 0) << k;
+      if (s.mag_uT) {
+        EXPECT_EQ(*s.mag_uT, Eigen::Vector3d(20.0 + 0.1 * k, -3.25, -43.0 - 1.0 / (k + 3))) << k;
+      }
+    }
+  }
+  // A reading with no IMU sample near it is named, not dropped.
+  const fs::path mag = tmp.path() / "mav0" / "mag0" / "data.csv";
+  spit(mag, slurp(mag) + "1900000000,1.0,2.0,3.0\n");
+  const std::string error = input_error_of([&] { (void)recording::read_euroc_imu(tmp.path()); });
+  EXPECT_THAT(error, HasSubstr("mag0/data.csv:12"));
+  EXPECT_THAT(error, HasSubstr("no imu0 sample within 50 ms"));
+  // Without a magnetometer there is no mag0 folder at all.
+  TempDir plain;
+  write_small_recording(plain.path(), 2);
+  EXPECT_FALSE(fs::exists(plain.path() / "mav0" / "mag0"));
+}
+
 TEST(EurocWriter, FormatsDoublesLikeEuroc) {
   EXPECT_EQ(recording::format_euroc_double(0.0), "0.0");
   EXPECT_EQ(recording::format_euroc_double(9.0), "9.0");

@@ -123,6 +123,7 @@ RigCalibration parse_kalibr(const config::YamlNode& root) {
     density("accelerometer_noise_density", rig.imu.accel_noise_density);
     density("accelerometer_random_walk", rig.imu.accel_random_walk);
     density("update_rate", rig.imu.rate_hz);
+    detail::read_imu_intrinsics(*imu, rig.imu);
   }
   return rig;
 }
@@ -239,7 +240,8 @@ std::string format_kalibr_camchain(const RigCalibration& rig, bool with_imu) {
       << "  # [m/s^2/sqrt(Hz)]\n"
       << "  accelerometer_random_walk: " << format_euroc_double(imu.accel_random_walk)
       << "  # [m/s^3/sqrt(Hz)]\n"
-      << "  update_rate: " << format_euroc_double(imu.rate_hz) << "  # [Hz]\n";
+      << "  update_rate: " << format_euroc_double(imu.rate_hz) << "  # [Hz]\n"
+      << detail::format_imu_intrinsics(imu, "  ");
   }
   return s.str();
 }

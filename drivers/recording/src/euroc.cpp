@@ -113,6 +113,39 @@ std::vector<ImuSample> parse_imu_csv(std::string_view text, const std::string& n
   return samples;
 }
 
+namespace {
+
+constexpr const char* kMagHeader = "#timestamp [ns],m_RS_S_x [uT],m_RS_S_y [uT],m_RS_S_z [uT]\n";
+// A magnetometer row belongs to the first IMU sample at or after it, no later than this.
+constexpr DurationNs kMagToImuMaxNs = 50 * kNsPerMs;
+
+// mav0/mag0/data.csv (wallar's, beside EuRoC's imu0: the magnetometer an ICM-20948 or BNO055
+// carries), attached to the IMU samples: the writer stamps each row with its IMU sample's time.
+void read_magnetometer(const fs::path& mav0, std::vector<ImuSample>& imu) {
+  std::error_code ec;
+  const fs::path csv = mav0 / "mag0" / "data.csv";
+  if (!fs::exists(csv, ec)) return;
+  const std::string name = csv.string();
+  TimeNs last_t_ns = 0;
+  bool first = true;
+  parse_csv(read_text_file(csv), name, 4, [&](const CsvRow& row) {
+    const TimeNs t_ns = row.int64_at(0, "timestamp");
+    check_monotonic(row, last_t_ns, t_ns, first);
+    first = false;
+    last_t_ns = t_ns;
+    const Eigen::Vector3d m(row.double_at(1, "m_x"), row.double_at(2, "m_y"),
+                            row.double_at(3, "m_z"));
+    const auto it = std::lower_bound(imu.begin(), imu.end(), t_ns,
+                                     [](const ImuSample& s, TimeNs t) { return s.t_ns < t; });
+    if (it == imu.end() || it->t_ns - t_ns > kMagToImuMaxNs) {
+      row.fail("has no imu0 sample within 50 ms at or after it");
+    }
+    it->mag_uT = m;  // a faster magnetometer than IMU: the newest reading per sample
+  });
+}
+
+}  // namespace
+
 std::vector<GroundTruthState> parse_ground_truth_csv(std::string_view text,
                                                      const std::string& name) {
   std::vector<GroundTruthState> states;
@@ -216,6 +249,54 @@ CameraCalibration read_pinhole_camera(const config::YamlNode& node,
   return c;
 }
 
+void read_imu_intrinsics(const config::YamlNode& map, ImuCalibration& imu) {
+  const auto finite = [](const config::YamlNode& n, std::size_t count) {
+    const std::vector<double> v = n.as_doubles(count);
+    for (const double x : v) {
+      if (!std::isfinite(x)) n.fail("must be finite numbers");
+    }
+    return v;
+  };
+  if (const config::YamlNode* n = map.find("accelerometer_bias")) {
+    const std::vector<double> v = finite(*n, 3);
+    imu.accel_bias_m_s2 = Eigen::Vector3d(v[0], v[1], v[2]);
+    if (imu.accel_bias_m_s2.norm() > 5.0) n->fail("is over 5 m/s^2: not a bias");
+  }
+  if (const config::YamlNode* n = map.find("magnetometer_hard_iron")) {
+    const std::vector<double> v = finite(*n, 3);
+    imu.mag_hard_iron_uT = Eigen::Vector3d(v[0], v[1], v[2]);
+  }
+  if (const config::YamlNode* n = map.find("magnetometer_soft_iron")) {
+    const std::vector<double> v = finite(*n, 9);
+    for (int i = 0; i < 9; ++i) imu.mag_soft_iron(i / 3, i % 3) = v[static_cast<std::size_t>(i)];
+    const double det = imu.mag_soft_iron.determinant();
+    if (!(std::abs(det) > 1e-6)) n->fail("must be an invertible 3x3 matrix (row-major)");
+  }
+}
+
+std::string format_imu_intrinsics(const ImuCalibration& imu, std::string_view indent) {
+  const auto list = [](const double* v, int n) {
+    std::string s = "[";
+    for (int i = 0; i < n; ++i) {
+      if (i != 0) s += ", ";
+      s += format_euroc_double(v[i]);
+    }
+    return s + "]";
+  };
+  std::string s;
+  const std::string in(indent);
+  if (imu.has_accel_bias()) {
+    s += in + "accelerometer_bias: " + list(imu.accel_bias_m_s2.data(), 3) + "  # [m/s^2]\n";
+  }
+  if (imu.has_mag_correction()) {
+    const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> S = imu.mag_soft_iron;
+    s += in + "magnetometer_hard_iron: " + list(imu.mag_hard_iron_uT.data(), 3) + "  # [uT]\n";
+    s += in + "magnetometer_soft_iron: " + list(S.data(), 9) +
+         "  # row-major: field = S (m - hard_iron)\n";
+  }
+  return s;
+}
+
 }  // namespace detail
 
 CameraCalibration parse_camera_sensor_yaml(std::string_view text, const std::string& name) {
@@ -252,6 +333,7 @@ ImuCalibration parse_imu_sensor_yaml(std::string_view text, const std::string& n
     if (!std::isfinite(s) || std::abs(s) > 1.0) shift->fail("must be within +-1 s");
     c.timeshift_cam_imu_ns = static_cast<std::int64_t>(std::llround(s * 1e9));
   }
+  detail::read_imu_intrinsics(root, c);
   return c;
 }
 
@@ -315,6 +397,7 @@ EurocRecording read_euroc_imu(const fs::path& root) {
   }
   const fs::path imu_csv = rec.mav0 / "imu0" / "data.csv";
   rec.imu = parse_imu_csv(read_text_file(imu_csv), imu_csv.string());
+  read_magnetometer(rec.mav0, rec.imu);
   if (fs::exists(rec.mav0 / "imu0" / "sensor.yaml", ec)) {
     rec.imu_calib = read_imu_sensor_yaml(rec.mav0 / "imu0" / "sensor.yaml");
   }
@@ -363,6 +446,7 @@ EurocRecording read_euroc(const fs::path& root, const ReadOptions& options) {
   if (fs::is_directory(rec.mav0 / "imu0", ec)) {
     const fs::path imu_csv = rec.mav0 / "imu0" / "data.csv";
     rec.imu = parse_imu_csv(read_text_file(imu_csv), imu_csv.string());
+    read_magnetometer(rec.mav0, rec.imu);
     const fs::path imu_yaml = rec.mav0 / "imu0" / "sensor.yaml";
     if (!rec.imu.empty() || fs::exists(imu_yaml, ec))
       rec.imu_calib = read_imu_sensor_yaml(imu_yaml);
@@ -435,6 +519,9 @@ std::string format_imu_sensor_yaml(const ImuCalibration& c) {
     s << "\n# camera-IMU time offset (Kalibr): t_imu = t_cam + timeshift_cam_imu [s]\n"
       << "timeshift_cam_imu: " << format_euroc_double(ns_to_s(c.timeshift_cam_imu_ns)) << "\n";
   }
+  if (const std::string extra = detail::format_imu_intrinsics(c, ""); !extra.empty()) {
+    s << "\n# accelerometer bias and magnetometer iron (wallar calibrate accel-mag)\n" << extra;
+  }
   return s.str();
 }
 
@@ -484,6 +571,26 @@ void EurocWriter::write_imu(const ImuSample& s) {
   write_all(imu_fd_, row, mav0_ / "imu0" / "data.csv");
   bytes_ += row.size();
   ++imu_rows_;
+  if (s.mag_uT) {
+    // The magnetometer beside imu0 (EuRoC has no place for it), stamped with its sample's time.
+    const fs::path mag_csv = mav0_ / "mag0" / "data.csv";
+    if (mag_fd_ < 0) {
+      std::error_code ec;
+      fs::create_directories(mav0_ / "mag0", ec);
+      if (ec)
+        throw_input_error((mav0_ / "mag0").string(), 0, "cannot create folder: " + ec.message());
+      mag_fd_ = open_csv(mag_csv, kMagHeader);
+    }
+    std::string mag_row = std::to_string(s.t_ns);
+    for (int i = 0; i < 3; ++i) {
+      mag_row += ',';
+      mag_row += format_euroc_double((*s.mag_uT)[i]);
+    }
+    mag_row += '\n';
+    write_all(mag_fd_, mag_row, mag_csv);
+    bytes_ += mag_row.size();
+    ++mag_rows_;
+  }
 }
 
 void EurocWriter::write_camera(int cam, const CameraFrame& frame) {
@@ -538,14 +645,14 @@ void EurocWriter::write_ground_truth(const GroundTruthState& state) {
 void EurocWriter::close() {
   if (closed_) return;
   closed_ = true;
-  for (int* fd : {&imu_fd_, &gt_fd_, &cam_fd_[0], &cam_fd_[1]}) {
+  for (int* fd : {&imu_fd_, &mag_fd_, &gt_fd_, &cam_fd_[0], &cam_fd_[1]}) {
     if (*fd < 0) continue;
     ::fsync(*fd);
     ::close(*fd);
     *fd = -1;
   }
   // Make the new directory entries (renamed PNGs) durable too.
-  for (const char* sub : {"cam0/data", "cam1/data", "imu0"}) {
+  for (const char* sub : {"cam0/data", "cam1/data", "imu0", "mag0"}) {
     const int dfd = ::open((mav0_ / sub).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
     if (dfd >= 0) {
       ::fsync(dfd);

@@ -36,6 +36,20 @@ struct ImuCalibration {
   /// (Kalibr's timeshift_cam_imu: t_imu = t_cam + shift) [ns].
   std::int64_t timeshift_cam_imu_ns = 0;
   SE3d T_body_imu = SE3d::Identity();
+  /// Accelerometer bias, subtracted from every accelerometer sample before use (`wallar
+  /// calibrate accel-mag`, from still poses in several tilts) [m/s^2].
+  Eigen::Vector3d accel_bias_m_s2 = Eigen::Vector3d::Zero();
+  /// Magnetometer hard and soft iron: the field is mag_soft_iron * (m - mag_hard_iron_uT)
+  /// (`wallar calibrate accel-mag`, an ellipsoid fit over a turning recording). Zero and
+  /// identity: uncorrected.
+  Eigen::Vector3d mag_hard_iron_uT = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d mag_soft_iron = Eigen::Matrix3d::Identity();
+
+  /// True when the file gave an accelerometer bias or a magnetometer correction.
+  [[nodiscard]] bool has_accel_bias() const { return !accel_bias_m_s2.isZero(0.0); }
+  [[nodiscard]] bool has_mag_correction() const {
+    return !mag_hard_iron_uT.isZero(0.0) || !mag_soft_iron.isIdentity(0.0);
+  }
 };
 
 /// Left and right camera, and the IMU.

@@ -112,15 +112,17 @@ struct ReadOptions {
 
 /// Reads a recording from ROOT or ROOT/mav0: cam0 and cam1 are required; imu0 is optional (a
 /// vision-only recording has no imu0 folder or a data.csv of its header only: `imu` stays empty
-/// and `imu_calib` the identity). Throws InputError naming the file and line of the
+/// and `imu_calib` the identity). A magnetometer (wallar's mav0/mag0/data.csv: timestamp [ns],
+/// m_x, m_y, m_z [uT], beside EuRoC's folders) goes into the `mag_uT` of the first IMU sample at
+/// or after each row (within 50 ms). Throws InputError naming the file and line of the
 /// first problem: missing folder or file, short or malformed row, non-numeric field,
 /// non-monotonic or duplicate timestamps, missing calibration key, wrong matrix size.
 EurocRecording read_euroc(const std::filesystem::path& root, const ReadOptions& options = {});
 
 /// Reads only the inertial part of a recording in ROOT or ROOT/mav0: imu0/data.csv (required),
-/// imu0/sensor.yaml, camN/sensor.yaml (calibration only, no frames) and the ground truth, each
-/// when present. For IMU-only recordings and for tools that need no images; `cams[i].frames`
-/// stay empty. Throws InputError as read_euroc does.
+/// imu0/sensor.yaml, mag0/data.csv, camN/sensor.yaml (calibration only, no frames) and the
+/// ground truth, each when present. For IMU-only recordings and for tools that need no images;
+/// `cams[i].frames` stay empty. Throws InputError as read_euroc does.
 EurocRecording read_euroc_imu(const std::filesystem::path& root);
 
 /// The encoded (PNG) bytes of one frame, from its file or from the recording's store.
@@ -216,6 +218,8 @@ class EurocWriter final : public RecordingWriter {
   void close() override;
 
   [[nodiscard]] std::size_t imu_written() const { return imu_rows_; }
+  /// Magnetometer rows (mav0/mag0/data.csv, made on the first sample that carries one).
+  [[nodiscard]] std::size_t mag_written() const { return mag_rows_; }
   [[nodiscard]] std::size_t frames_written(int cam) const { return cam_rows_[cam]; }
   /// Bytes of rows and images written (the small sensor files aside).
   [[nodiscard]] std::uint64_t bytes_written() const { return bytes_; }
@@ -226,8 +230,10 @@ class EurocWriter final : public RecordingWriter {
   EurocWriterOptions options_;
   int imu_fd_ = -1;                    //!< imu0/data.csv, O_APPEND
   int gt_fd_ = -1;                     //!< state_groundtruth_estimate0/data.csv, once needed
+  int mag_fd_ = -1;                    //!< mag0/data.csv, once a sample carries the field
   std::array<int, 2> cam_fd_{-1, -1};  //!< camN/data.csv, O_APPEND
   std::size_t imu_rows_ = 0;
+  std::size_t mag_rows_ = 0;
   std::array<std::size_t, 2> cam_rows_{0, 0};
   std::uint64_t bytes_ = 0;
   bool closed_ = false;
