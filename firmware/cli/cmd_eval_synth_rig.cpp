@@ -39,8 +39,10 @@ eval::SynthRigOptions options_of(const SynthRigArgs& a) {
   eval::SynthRigOptions o = a.options;
   const auto motion = dsp::head_motion_named(a.motion);
   if (!motion) {
-    throw InputError("--motion: must be look-around, walk, quick-turns, room-loop or walk-turns, got '" +
-                     printable(a.motion) + "'");
+    std::string names;
+    for (const std::string_view n : dsp::kHeadMotionNames)
+      names += (names.empty() ? "" : ", ") + std::string(n);
+    throw InputError("--motion: must be one of " + names + ", got '" + printable(a.motion) + "'");
   }
   o.motion = *motion;
   if (a.peak_turn_given && o.motion != dsp::HeadMotion::kQuickTurns &&
@@ -114,7 +116,10 @@ void add_eval_synth_rig_command(CLI::App& eval, std::function<int()>& run) {
       "synth-rig",
       "Write a synthetic moving-headset recording (EuRoC layout: stereo, IMU, ground truth)");
   s->add_option("--out", a->out, "Output folder (must not exist, or be empty)")->required();
-  s->add_option("--motion", a->motion, "look-around, walk, quick-turns, room-loop or walk-turns (walking with quick glances aside)")
+  s->add_option("--motion", a->motion,
+                "look-around, walk, quick-turns, room-loop, walk-turns (walking with quick "
+                "glances aside) or calibration (held still in five tilts, turned round in "
+                "quarter turns at each: for calibrate accel-mag and imu-cam)")
       ->capture_default_str();
   s->add_option("--duration", o.duration_s, "Length [s]")->capture_default_str();
   s->add_option("--camera-rate", o.camera_rate_hz, "Stereo frame rate [Hz]")->capture_default_str();
@@ -136,7 +141,8 @@ void add_eval_synth_rig_command(CLI::App& eval, std::function<int()>& run) {
   s->add_option("--time-offset-ms", o.time_offset_ms,
                 "IMU clock minus camera clock [ms] (Kalibr's timeshift_cam_imu)")
       ->capture_default_str();
-  s->add_option("--peak-turn-deg-s", o.peak_turn_deg_s, "quick-turns, walk-turns: peak rate of each turn")
+  s->add_option("--peak-turn-deg-s", o.peak_turn_deg_s,
+                "quick-turns, walk-turns: peak rate of each turn")
       ->capture_default_str()
       ->each([a](const std::string&) { a->peak_turn_given = true; });
   s->add_option("--width", o.width_px, "Image width [px]")->capture_default_str();
@@ -147,6 +153,11 @@ void add_eval_synth_rig_command(CLI::App& eval, std::function<int()>& run) {
       ->capture_default_str();
   s->add_option("--imu-noise-from", a->imu_noise_from,
                 "imu0/sensor.yaml whose noise densities and random walks the IMU gets");
+  s->add_flag("--magnetometer", o.magnetometer,
+              "A magnetometer on the IMU (mag0/data.csv), with hard and soft iron drawn from the "
+              "seed (the truth in the ground truth's sensor.yaml)");
+  s->add_flag("--imu-only", o.imu_only,
+              "No images (an IMU recording for calibrate imu-noise and accel-mag)");
   s->add_flag("--json", a->json, "Print the summary as JSON");
   s->callback([a, &run] { run = [a] { return run_synth_rig(*a); }; });
 }

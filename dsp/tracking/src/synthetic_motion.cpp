@@ -300,6 +300,42 @@ HeadMotionModel::HeadMotionModel(const SyntheticRoom& room, const HeadMotionConf
       t += turn.duration_s + 1.0 + 1.5 * unit_open(rng());
     }
   }
+  if (config.motion == HeadMotion::kCalibration) {
+    // Tilts held still, each turned round in quarter turns with a hold after each: every
+    // start and stop is sharp (a turn's rate rises from 0 to its peak in a quarter of it).
+    std::mt19937_64 rng(mix64(config.seed ^ 0x63616C6962ULL));
+    constexpr double kPeakRad = 150.0 * kDeg;
+    constexpr std::array<std::array<double, 2>, 6> kTiltsDeg = {
+        {{0.0, 0.0}, {75.0, 0.0}, {-75.0, 0.0}, {0.0, 75.0}, {0.0, -75.0}, {0.0, 0.0}}};
+    double t = config.still_start_s;
+    double pitch = 0.0, roll = 0.0, yaw = 0.0;
+    for (std::size_t k = 0; k < kTiltsDeg.size(); ++k) {
+      const double dp = kTiltsDeg[k][0] * kDeg - pitch, dr = kTiltsDeg[k][1] * kDeg - roll;
+      double tilt_s = 0.0;
+      if (dp != 0.0) {
+        pitch_turns_.push_back(QuickTurn{t, 2.0 * std::abs(dp) / kPeakRad, dp});
+        pitch_before_.push_back(pitch);
+        pitch += dp;
+        tilt_s = pitch_turns_.back().duration_s;
+      }
+      if (dr != 0.0) {
+        roll_turns_.push_back(QuickTurn{t, 2.0 * std::abs(dr) / kPeakRad, dr});
+        roll_before_.push_back(roll);
+        roll += dr;
+        tilt_s = std::max(tilt_s, roll_turns_.back().duration_s);
+      }
+      t += tilt_s + 1.5 + 0.5 * unit_open(rng());
+      if (k + 1 == kTiltsDeg.size()) break;  // back to level: done
+      const double sign = k % 2 == 0 ? 1.0 : -1.0;
+      for (int q = 0; q < 4; ++q) {
+        const QuickTurn turn{t, 2.0 * (90.0 * kDeg) / kPeakRad, sign * 90.0 * kDeg};
+        turns_.push_back(turn);
+        turn_yaw_before_.push_back(yaw);
+        yaw += turn.yaw_rad;
+        t += turn.duration_s + 0.8 + 0.4 * unit_open(rng());
+      }
+    }
+  }
   if (config.motion == HeadMotion::kWalkTurns) {
     // Glances: a quick turn aside, a look, the quick turn back, then walking on.
     std::mt19937_64 rng(mix64(config.seed ^ 0x77616C6B7475726EULL));
@@ -352,6 +388,15 @@ BodyMotionState HeadMotionModel::state(double t_s) const {
             stand_yaw_rad_;
       pitch = e * wave(tau, 3.0 * kDeg, 0.07, ph[6]) + kPitchDownRad;
       roll = e * wave(tau, 1.0 * kDeg, 0.09, ph[0]);
+      break;
+    }
+    case HeadMotion::kCalibration: {
+      // Held in the hands at the standing head's place: only the scheduled turns move it.
+      const Eigen::Vector3d& p0 = stand_neck_world_;
+      neck = {constant(p0.x()), constant(p0.y()), constant(p0.z())};
+      yaw = quick_turn_yaw(turns_, turn_yaw_before_, t) + stand_yaw_rad_;
+      pitch = quick_turn_yaw(pitch_turns_, pitch_before_, t) + kPitchDownRad;
+      roll = quick_turn_yaw(roll_turns_, roll_before_, t);
       break;
     }
     case HeadMotion::kWalk:
@@ -636,6 +681,18 @@ void draw_initial_biases(SyntheticImuConfig& config, std::uint64_t seed) {
   config.accel_bias0_m_s2 = 0.05 * g.vec();
 }
 
+void draw_magnetometer_iron(SyntheticImuConfig& config, std::uint64_t seed) {
+  std::mt19937_64 rng(mix64(seed ^ 0x69726F6EULL));
+  Gaussian g(rng);
+  config.mag.enabled = true;
+  config.mag.hard_iron_uT = 20.0 * g.vec();
+  Eigen::Matrix3d e;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = i; j < 3; ++j) e(i, j) = e(j, i) = 0.05 * g();
+  }
+  config.mag.soft_iron = Eigen::Matrix3d::Identity() + e;
+}
+
 SyntheticImu::SyntheticImu(const HeadMotionModel& model, const SyntheticImuConfig& config,
                            TimeNs t0_ns, TimeNs first_ns)
     : model_(model),
@@ -644,7 +701,8 @@ SyntheticImu::SyntheticImu(const HeadMotionModel& model, const SyntheticImuConfi
       first_ns_(first_ns),
       bg_(config.gyro_bias0_rad_s),
       ba_(config.accel_bias0_m_s2),
-      rng_(mix64(config.seed ^ 0x696D7530ULL)) {
+      rng_(mix64(config.seed ^ 0x696D7530ULL)),
+      mag_rng_(mix64(config.seed ^ 0x6D616730ULL)) {
   const ImuCalibration& n = config.noise;
   if (!(config.rate_hz >= 1.0 && config.rate_hz <= 10000.0)) {
     throw std::invalid_argument("SyntheticImu: rate must be 1-10000 Hz");
@@ -678,6 +736,13 @@ SyntheticImuRow SyntheticImu::next() {
       ba_ + n.accel_noise_density * sqrt_rate * g.vec();
   bg_ += n.gyro_random_walk / sqrt_rate * g.vec();
   ba_ += n.accel_random_walk / sqrt_rate * g.vec();
+  const SyntheticMagnetometerConfig& mag = config_.mag;
+  if (mag.enabled && k_ % static_cast<std::uint64_t>(std::max(1, mag.every_n_samples)) == 0) {
+    Gaussian gm(mag_rng_);
+    row.sample.mag_uT =
+        mag.soft_iron * (row.truth.T_world_body.linear().transpose() * mag.field_world_uT) +
+        mag.hard_iron_uT + mag.noise_uT * gm.vec();
+  }
   ++k_;
   return row;
 }

@@ -212,6 +212,7 @@ nlohmann::json write_synth_rig(const SynthRigOptions& o, const fs::path& out,
   // The calibration a user would have: imu0/sensor.yaml carries the offset (timeshift_cam_imu).
   calib.imu.timeshift_cam_imu_ns = imu_config.clock_offset_ns;
   dsp::draw_initial_biases(imu_config, o.seed);
+  if (o.magnetometer) dsp::draw_magnetometer_iron(imu_config, o.seed);
 
   const std::size_t frames =
       static_cast<std::size_t>(std::floor(o.duration_s * o.camera_rate_hz + 1e-6));
@@ -289,6 +290,7 @@ nlohmann::json write_synth_rig(const SynthRigOptions& o, const fs::path& out,
       imu_until(t_ns);
       const double t_s = static_cast<double>(t_ns - o.t0_ns) * 1e-9;
       if (o.ground_truth_at_camera_rate) ground_truth(t_ns, model.state(t_s));
+      if (o.imu_only) continue;
       const dsp::FrameFormation f =
           dsp::form_stereo_frame(room, rig.camera, T_world_cam0, t_s, gains[k], k, ic,
                                  std::span<std::uint8_t>(left.mutable_data(), n_px),
@@ -349,6 +351,20 @@ nlohmann::json write_synth_rig(const SynthRigOptions& o, const fs::path& out,
     yaml += "accel_bias0_m_s2: [" + yaml_num(imu_config.accel_bias0_m_s2.x()) + ", " +
             yaml_num(imu_config.accel_bias0_m_s2.y()) + ", " +
             yaml_num(imu_config.accel_bias0_m_s2.z()) + "]\n";
+    if (o.magnetometer) {
+      const dsp::SyntheticMagnetometerConfig& m = imu_config.mag;
+      const auto vec = [](const Eigen::Vector3d& v) {
+        return "[" + yaml_num(v.x()) + ", " + yaml_num(v.y()) + ", " + yaml_num(v.z()) + "]";
+      };
+      yaml += "magnetic_field_world_uT: " + vec(m.field_world_uT) + "\n";
+      yaml += "magnetometer_hard_iron_uT: " + vec(m.hard_iron_uT) + "\n";
+      yaml += "magnetometer_soft_iron: [";
+      for (int i = 0; i < 9; ++i) yaml += (i ? ", " : "") + yaml_num(m.soft_iron(i / 3, i % 3));
+      yaml += "]  # row-major: reading = soft_iron * field_body + hard_iron + noise\n";
+      yaml += "magnetometer_noise_uT: " + yaml_num(m.noise_uT) +
+              "\nmagnetometer_every_n_samples: " + std::to_string(m.every_n_samples) + "\n";
+    }
+    yaml += "images: " + std::string(o.imu_only ? "none" : "stereo") + "\n";
     yaml += "room_m: [" + yaml_num(rb.x_min_m) + ", " + yaml_num(rb.x_max_m) + ", " +
             yaml_num(rb.y_min_m) + ", " + yaml_num(rb.y_max_m) + ", 0.0, " + yaml_num(rb.z_max_m) +
             "]  # x_min x_max y_min y_max z_min z_max\n";
@@ -378,8 +394,9 @@ nlohmann::json write_synth_rig(const SynthRigOptions& o, const fs::path& out,
         {"out", out.string()},
         {"motion", std::string(dsp::to_string(o.motion))},
         {"seed", o.seed},
-        {"frames", frames},
+        {"frames", writer.frames_written(0)},
         {"imu_rows", writer.imu_written()},
+        {"magnetometer_rows", writer.mag_written()},
         {"ground_truth_rows", gt_rows},
         {"width", o.width_px},
         {"height", o.height_px},

@@ -6,7 +6,8 @@
 ///
 /// Layout written under OUT (first as OUT.part, renamed to OUT when complete, so an interrupted
 /// or failed run leaves no recording that looks finished):
-///   mav0/body.yaml, cam{0,1}/{data.csv, data/T.png, sensor.yaml}, imu0/{data.csv, sensor.yaml}
+///   mav0/body.yaml, cam{0,1}/{data.csv, data/T.png, sensor.yaml}, imu0/{data.csv, sensor.yaml},
+///   mag0/data.csv (with a magnetometer)
 ///   mav0/camchain-imucam.yaml   Kalibr's form: T_cam_imu, intrinsics, timeshift_cam_imu [s]
 ///   mav0/state_groundtruth_estimate0/
 ///     data.csv          T_world_body, v, gyro/accel biases at the IMU's sample times (or the
@@ -53,6 +54,13 @@ struct SynthRigOptions {
   bool ground_truth_at_camera_rate = false;  //!< default: at the IMU's sample times
   /// The IMU's noise densities; default: dsp::default_headset_rig()'s (a consumer MEMS IMU).
   std::optional<ImuCalibration> imu_noise;
+  /// A magnetometer on the IMU (mav0/mag0/data.csv) with hard and soft iron drawn from the seed
+  /// (dsp::draw_magnetometer_iron); the truth goes into the ground truth's sensor.yaml.
+  bool magnetometer = false;
+  /// No images: cam0 and cam1 hold their sensor.yaml and a data.csv of its header only (an IMU
+  /// recording for `calibrate imu-noise` and `calibrate accel-mag`, made in a fraction of the
+  /// time).
+  bool imu_only = false;
   /// The first camera frame's time stamp [ns].
   TimeNs t0_ns = 1'700'000'000'000'000'000;
 };

@@ -49,9 +49,14 @@ enum class HeadMotion {
   kQuickTurns,  //!< standing, quick head turns of 60-120 deg peaking at peak_turn_deg_s
   kRoomLoop,    //!< walking laps of one ellipse, every lap the same (map-capacity tests)
   kWalkTurns,   //!< walking while glancing aside: quick turns of 60-90 deg out and back
+  /// Standing, the headset held in the hands: held still level and tilted about 45 deg forward,
+  /// back, left and right, at each tilt turned round in four quarter turns with a hold after
+  /// each (sharp starts and stops, about every axis): the motion for calibrating the
+  /// accelerometer's bias, the magnetometer's iron and the camera-IMU time offset.
+  kCalibration,
 };
-inline constexpr std::array<std::string_view, 5> kHeadMotionNames{
-    "look-around", "walk", "quick-turns", "room-loop", "walk-turns"};
+inline constexpr std::array<std::string_view, 6> kHeadMotionNames{
+    "look-around", "walk", "quick-turns", "room-loop", "walk-turns", "calibration"};
 [[nodiscard]] std::string_view to_string(HeadMotion motion);
 [[nodiscard]] std::optional<HeadMotion> head_motion_named(std::string_view name);
 
@@ -96,7 +101,7 @@ class HeadMotionModel {
 
   [[nodiscard]] const HeadMotionConfig& config() const { return config_; }
   [[nodiscard]] const SyntheticRoom& room() const { return room_; }
-  /// quick-turns, walk-turns: the turns; empty for the other scenarios.
+  /// quick-turns, walk-turns, calibration: the yaw turns; empty for the other scenarios.
   [[nodiscard]] const std::vector<QuickTurn>& turns() const { return turns_; }
   /// walk, room-loop: the time of one lap once at speed [s]; 0 for standing scenarios.
   [[nodiscard]] double lap_period_s() const;
@@ -113,6 +118,9 @@ class HeadMotionModel {
   std::array<double, 8> phase_{};  //!< seeded phases [rad]
   std::vector<QuickTurn> turns_;
   std::vector<double> turn_yaw_before_;  //!< summed yaw of the turns before turns_[i]
+  /// calibration: the tilts, as turns of pitch and of roll (QuickTurn::yaw_rad their angle).
+  std::vector<QuickTurn> pitch_turns_, roll_turns_;
+  std::vector<double> pitch_before_, roll_before_;
   Path path_;
   Eigen::Vector3d stand_neck_world_ = Eigen::Vector3d::Zero();
   double stand_yaw_rad_ = 0.0;
@@ -210,6 +218,19 @@ FrameFormation form_stereo_frame(const SyntheticRoom& room, const SyntheticCamer
 // ---------------------------------------------------------------------------------------------
 // IMU
 
+/// A magnetometer on the IMU: it reads m = soft_iron * (R_body_world * field_world) +
+/// hard_iron + noise (so `soft_iron^-1` is what a calibration's S should find, up to scale).
+struct SyntheticMagnetometerConfig {
+  bool enabled = false;
+  /// The earth's field in the world frame: 20 uT horizontal along world x, 43 uT down
+  /// (inclination 65 deg, central Europe).
+  Eigen::Vector3d field_world_uT{20.0, 0.0, -43.0};
+  Eigen::Vector3d hard_iron_uT = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d soft_iron = Eigen::Matrix3d::Identity();
+  double noise_uT = 0.3;    //!< white noise per axis and reading (AK09916: 0.15 uT LSB)
+  int every_n_samples = 2;  //!< a reading with every n-th IMU sample (100 Hz at 200 Hz)
+};
+
 struct SyntheticImuConfig {
   double rate_hz = 200.0;
   /// The noise: gyro/accel noise densities and random walks (EuRoC units). All 0: a perfect IMU.
@@ -222,10 +243,14 @@ struct SyntheticImuConfig {
   /// shift) is this offset.
   DurationNs clock_offset_ns = 0;
   std::uint64_t seed = 1;
+  SyntheticMagnetometerConfig mag;  //!< off by default
 };
 
 /// Turn-on biases drawn from `seed` (gyro sigma 0.005 rad/s, accel 0.05 m/s^2 per axis).
 void draw_initial_biases(SyntheticImuConfig& config, std::uint64_t seed);
+/// Enables the magnetometer with hard iron (sigma 20 uT per axis) and soft iron (identity plus a
+/// symmetric perturbation, sigma 0.05 per entry) drawn from `seed`.
+void draw_magnetometer_iron(SyntheticImuConfig& config, std::uint64_t seed);
 
 /// One synthesised IMU sample and the truth behind it.
 struct SyntheticImuRow {
@@ -258,6 +283,7 @@ class SyntheticImu {
   std::uint64_t k_ = 0;
   Eigen::Vector3d bg_, ba_;
   std::mt19937_64 rng_;
+  std::mt19937_64 mag_rng_;  //!< its own stream: the IMU's noise is the same with or without
 };
 
 }  // namespace wallar::dsp
