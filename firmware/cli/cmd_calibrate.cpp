@@ -2,7 +2,8 @@
 /// @file cmd_calibrate.cpp
 /// @brief `wallar calibrate imu-cam RECORDING`: the IMU-to-left-camera rotation and the
 /// camera-IMU time offset from the gyro against the images, compared with the recording's
-/// calibration, and written as the rig file a board points at (--out).
+/// calibration, and written as the rig file a board points at (--out); `calibrate imu-noise`
+/// (Allan deviation at rest) and `calibrate accel-mag` (accelerometer bias, magnetometer iron).
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -12,6 +13,7 @@
 #include "wallar/core/error.hpp"
 #include "wallar/drivers/recording/calibration_files.hpp"
 #include "wallar/eval/output.hpp"
+#include "wallar/firmware/accel_mag_calibration.hpp"
 #include "wallar/firmware/imu_cam_calibration.hpp"
 #include "wallar/firmware/imu_noise_calibration.hpp"
 #include "wallar/firmware/offline.hpp"
@@ -128,6 +130,10 @@ int run_imu_cam(const ImuCamArgs& a) {
       rig.imu.gyro_random_walk = noise->gyro_random_walk;
       rig.imu.accel_noise_density = noise->accel_noise_density;
       rig.imu.accel_random_walk = noise->accel_random_walk;
+      // And the accelerometer bias and magnetometer iron, where `calibrate accel-mag` put them.
+      rig.imu.accel_bias_m_s2 = noise->accel_bias_m_s2;
+      rig.imu.mag_hard_iron_uT = noise->mag_hard_iron_uT;
+      rig.imu.mag_soft_iron = noise->mag_soft_iron;
       j["imu_noise_from"] = a.imu;
     }
     eval::write_file_atomically(a.out, recording::format_kalibr_camchain(rig, true));
@@ -226,6 +232,136 @@ int run_imu_noise(const ImuNoiseArgs& a) {
   return kExitOk;
 }
 
+struct AccelMagArgs {
+  std::string recording;
+  std::string imu;  // the sensor.yaml to start from (`calibrate imu-noise --out`)
+  std::string out;  // the sensor.yaml to write
+  firmware::AccelMagCalibrationParams params;
+  bool json = false;
+};
+
+nlohmann::json vec_json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+int run_accel_mag(const AccelMagArgs& a) {
+  std::optional<ImuCalibration> base;
+  if (!a.imu.empty()) base = recording::read_imu_sensor_yaml(a.imu);
+  const recording::EurocRecording rec = recording::read_recording_imu(a.recording);
+  const firmware::AccelMagCalibration c = firmware::calibrate_accel_mag(rec, a.params);
+  const auto opt = [](const std::optional<double>& v) {
+    return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+  };
+  const std::string where = (rec.mav0 / "imu0").string();
+  std::string accel_why;
+  if (!c.accel.solved) {
+    char msg[200];
+    if (c.poses.size() < 4) {
+      std::snprintf(msg, sizeof msg,
+                    "%zu still poses found: hold the headset still (a second each) in at least "
+                    "four tilts: level, forward, back, left, right",
+                    c.poses.size());
+    } else {
+      std::snprintf(msg, sizeof msg,
+                    "the %zu still poses do not tilt about every axis (spread %.3f, needs %.2f): "
+                    "hold it tilted forward, back, left and right too",
+                    c.poses.size(), c.accel.direction_spread, dsp::kMinAccelDirectionSpread);
+    }
+    accel_why = msg;
+  }
+  std::string mag_why;
+  if (c.mag && !c.mag->solved) {
+    char msg[200];
+    std::snprintf(msg, sizeof msg,
+                  "the %zu magnetometer readings cover too few directions (coverage %.3f, needs "
+                  "%.2f): turn the headset round at several tilts",
+                  c.mag_samples, c.mag->coverage, dsp::kMinMagCoverage);
+    mag_why = msg;
+  }
+  nlohmann::json j = {{"recording", a.recording},
+                      {"duration_s", c.duration_s},
+                      {"imu_samples", c.samples},
+                      {"still_poses", c.poses.size()},
+                      {"gravity_m_s2", a.params.gravity_m_s2}};
+  j["accelerometer"] = {{"solved", c.accel.solved},
+                        {"bias_m_s2", vec_json(c.accel.bias_m_s2)},
+                        {"residual_rms_m_s2", c.accel.residual_rms_m_s2},
+                        {"direction_spread", c.accel.direction_spread}};
+  if (!accel_why.empty()) j["accelerometer"]["why"] = accel_why;
+  if (c.accel_bias_truth_m_s2) {
+    j["accelerometer"]["truth_bias_m_s2"] = vec_json(*c.accel_bias_truth_m_s2);
+    j["accelerometer"]["bias_error_m_s2"] = (c.accel.bias_m_s2 - *c.accel_bias_truth_m_s2).norm();
+    j["accelerometer"]["tilt_error_raw_deg"] = opt(c.tilt_error_raw_deg);
+    j["accelerometer"]["tilt_error_deg"] = opt(c.tilt_error_deg);
+  }
+  if (c.mag) {
+    const Eigen::Matrix3d& S = c.mag->soft_iron;
+    j["magnetometer"] = {
+        {"solved", c.mag->solved},
+        {"readings", c.mag_samples},
+        {"hard_iron_uT", vec_json(c.mag->hard_iron_uT)},
+        {"soft_iron",
+         {S(0, 0), S(0, 1), S(0, 2), S(1, 0), S(1, 1), S(1, 2), S(2, 0), S(2, 1), S(2, 2)}},
+        {"field_uT", c.mag->field_uT},
+        {"residual_rms_uT", c.mag->residual_rms_uT},
+        {"coverage", c.mag->coverage},
+        {"heading_spread_raw_deg", opt(c.heading_spread_raw_deg)},
+        {"heading_spread_deg", opt(c.heading_spread_deg)}};
+    if (!mag_why.empty()) j["magnetometer"]["why"] = mag_why;
+  } else {
+    j["magnetometer"] = nullptr;
+  }
+  if (!a.out.empty()) {
+    // A file with a part that failed would pass for a calibration: refuse it, say which part.
+    if (!accel_why.empty()) throw_input_error(where, 0, "--out: accelerometer: " + accel_why);
+    if (!mag_why.empty()) throw_input_error(where, 0, "--out: magnetometer: " + mag_why);
+    ImuCalibration imu = base ? *base : rec.imu_calib;
+    if (imu.rate_hz <= 0.0) imu.rate_hz = static_cast<double>(c.samples - 1) / c.duration_s;
+    imu.accel_bias_m_s2 = c.accel.bias_m_s2;
+    if (c.mag) {
+      imu.mag_hard_iron_uT = c.mag->hard_iron_uT;
+      imu.mag_soft_iron = c.mag->soft_iron;
+    }
+    recording::write_imu_sensor_yaml(a.out, imu);
+    j["out"] = a.out;
+  }
+  const auto unsolved = [&] {
+    std::fprintf(stderr, "wallar: %s: accelerometer bias not solved: %s\n", where.c_str(),
+                 accel_why.c_str());
+    return kExitBadInput;
+  };
+  if (a.json) {
+    std::cout << j.dump(2) << "\n";
+    return c.accel.solved ? kExitOk : unsolved();
+  }
+  std::printf("wallar calibrate accel-mag: %.1f s, %zu IMU samples, %zu still poses\n",
+              c.duration_s, c.samples, c.poses.size());
+  if (c.accel.solved) {
+    const Eigen::Vector3d& b = c.accel.bias_m_s2;
+    std::printf(
+        "  accelerometer bias [%+.4f %+.4f %+.4f] m/s^2 (|a - b| - g: %.4f m/s^2 RMS, spread "
+        "%.2f)\n",
+        b.x(), b.y(), b.z(), c.accel.residual_rms_m_s2, c.accel.direction_spread);
+  } else {
+    std::printf("  accelerometer bias: not solved: %s\n", accel_why.c_str());
+  }
+  if (!c.mag) {
+    std::printf("  magnetometer: the recording has no readings (mag0/data.csv)\n");
+  } else if (c.mag->solved) {
+    const Eigen::Vector3d& h = c.mag->hard_iron_uT;
+    std::printf(
+        "  magnetometer hard iron [%+.2f %+.2f %+.2f] uT, field %.2f uT (%.3f uT RMS), "
+        "coverage %.2f\n",
+        h.x(), h.y(), h.z(), c.mag->field_uT, c.mag->residual_rms_uT, c.mag->coverage);
+  } else {
+    std::printf("  magnetometer: not solved: %s\n", mag_why.c_str());
+  }
+  if (c.heading_spread_raw_deg && c.heading_spread_deg) {
+    std::printf("  heading spread against the ground truth: %.2f deg as read, %.2f corrected\n",
+                *c.heading_spread_raw_deg, *c.heading_spread_deg);
+  }
+  if (!a.out.empty()) std::printf("written to %s\n", a.out.c_str());
+  return c.accel.solved ? kExitOk : unsolved();
+}
+
 }  // namespace
 
 void add_calibrate_command(CLI::App& app, std::function<int()>& run) {
@@ -283,6 +419,34 @@ void add_calibrate_command(CLI::App& app, std::function<int()>& run) {
                     "Write an imu0/sensor.yaml with the measured densities (Kalibr's names)");
   noise->add_flag("--json", n->json, "Print the result as JSON on stdout");
   noise->callback([n, &run] { run = [n] { return run_imu_noise(*n); }; });
+  auto am = std::make_shared<AccelMagArgs>();
+  CLI::App* accel_mag = calibrate->add_subcommand(
+      "accel-mag",
+      "The accelerometer's bias (from still poses in several tilts) and the magnetometer's hard "
+      "and soft iron (an ellipsoid fit) from a recording of the headset held in tilts and turned "
+      "round");
+  accel_mag
+      ->add_option("recording", am->recording,
+                   "Recording with imu0 (and mag0 for the magnetometer), EuRoC folder or .mcap")
+      ->required();
+  accel_mag
+      ->add_option("--gravity", am->params.gravity_m_s2,
+                   "Local gravity the still poses are held to [m/s^2]")
+      ->check(CLI::Range(9.7, 9.9))
+      ->capture_default_str();
+  accel_mag
+      ->add_option("--field-uT", am->params.field_uT,
+                   "Local magnetic field strength [uT] (0: keep the sensor's own scale)")
+      ->check(CLI::Range(0.0, 100.0))
+      ->capture_default_str();
+  accel_mag->add_option("--imu", am->imu,
+                        "Start from this imu0/sensor.yaml (`calibrate imu-noise --out`): --out "
+                        "keeps its noise figures");
+  accel_mag->add_option(
+      "--out", am->out,
+      "Write an imu0/sensor.yaml with the bias and iron (for `calibrate imu-cam --imu`)");
+  accel_mag->add_flag("--json", am->json, "Print the result as JSON on stdout");
+  accel_mag->callback([am, &run] { run = [am] { return run_accel_mag(*am); }; });
   add_calibrate_stereo_commands(*calibrate, run);
 }
 

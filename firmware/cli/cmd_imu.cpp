@@ -205,6 +205,7 @@ int run_imu_command(const ImuArgs& a) {
                       {"accel_updates", run.counters.accel_updates},
                       {"accel_rejected", run.counters.accel_rejected},
                       {"mag_updates", run.counters.mag_updates},
+                      {"mag_rejected", run.counters.mag_rejected},
                       {"bad_samples", run.counters.bad_samples},
                       {"gaps", run.counters.gaps}};
   if (rec.cams[0].calib.fx > 0.0 && run.valid_rows > 0) {

@@ -17,6 +17,10 @@ dsp::AttitudeFilterConfig attitude_config_for(const ImuCalibration& imu) {
   // noise in the filter stays a model of vibration and motion, not of the sensor.
   if (imu.gyro_noise_density > 0.0) config.gyro_noise_rad_s_sqrt_hz = imu.gyro_noise_density;
   if (imu.gyro_random_walk > 0.0) config.gyro_bias_walk_rad_s2_sqrt_hz = imu.gyro_random_walk;
+  // The accelerometer's bias and the magnetometer's iron, where `calibrate accel-mag` gave them.
+  config.accel_bias_m_s2 = imu.accel_bias_m_s2;
+  config.mag_hard_iron_uT = imu.mag_hard_iron_uT;
+  config.mag_soft_iron = imu.mag_soft_iron;
   return config;
 }
 

@@ -69,9 +69,25 @@ RunOutputs outputs_in(const ApplianceReport& report, const SE3d& T_world_tracker
   return out;
 }
 
-std::optional<SE3d> gravity_alignment(const recording::EurocRecording& rec, TimeNs t0_ns) {
+namespace {
+
+// The IMU at rest around t0_ns, its accelerometer corrected by the calibration's bias.
+std::optional<dsp::StaticImuEstimate> still_around(const recording::EurocRecording& rec,
+                                                   TimeNs t0_ns) {
   if (rec.imu.empty()) return std::nullopt;
-  const auto still = dsp::estimate_static_imu(rec.imu, t0_ns - kNsPerS / 2, t0_ns + kNsPerS / 2);
+  auto still = dsp::estimate_static_imu(rec.imu, t0_ns - kNsPerS / 2, t0_ns + kNsPerS / 2);
+  if (still && rec.imu_calib.has_accel_bias()) {
+    still->mean_accel_m_s2 -= rec.imu_calib.accel_bias_m_s2;
+    still->q_world_body = Eigen::Quaterniond::FromTwoVectors(still->mean_accel_m_s2.normalized(),
+                                                             Eigen::Vector3d::UnitZ());
+  }
+  return still;
+}
+
+}  // namespace
+
+std::optional<SE3d> gravity_alignment(const recording::EurocRecording& rec, TimeNs t0_ns) {
+  const auto still = still_around(rec, t0_ns);
   if (!still) return std::nullopt;
   SE3d R_align = SE3d::Identity();
   R_align.linear() = still->q_world_body.toRotationMatrix();
@@ -102,10 +118,7 @@ RunEvaluation evaluate_run(const recording::EurocRecording& rec, const Appliance
 
   // World: the first body pose, optionally turned so z is up.
   const TimeNs t0_ns = frames.front().t_ns;
-  std::optional<dsp::StaticImuEstimate> still;
-  if (!rec.imu.empty()) {
-    still = dsp::estimate_static_imu(rec.imu, t0_ns - kNsPerS / 2, t0_ns + kNsPerS / 2);
-  }
+  const std::optional<dsp::StaticImuEstimate> still = still_around(rec, t0_ns);
   SE3d R_align = SE3d::Identity();
   if (options.gravity_aligned) {
     const std::optional<SE3d> aligned = gravity_alignment(rec, t0_ns);

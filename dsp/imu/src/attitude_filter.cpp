@@ -54,8 +54,13 @@ void AttitudeFilter::initialize(const StaticImuEstimate& still, TimeNs t_ns) {
   window_.clear();
 }
 
-bool AttitudeFilter::update(const ImuSample& sample) {
+bool AttitudeFilter::update(const ImuSample& raw) {
   ++counters_.samples;
+  // The calibration's accelerometer bias and magnetometer iron, before anything uses them.
+  ImuSample sample = raw;
+  sample.accel_m_s2 -= config_.accel_bias_m_s2;
+  if (sample.mag_uT)
+    *sample.mag_uT = config_.mag_soft_iron * (*sample.mag_uT - config_.mag_hard_iron_uT);
   if (!sample.gyro_rad_s.allFinite() || !sample.accel_m_s2.allFinite()) {
     ++counters_.bad_samples;
     return initialized_;
@@ -156,20 +161,37 @@ void AttitudeFilter::update_mag(const Eigen::Vector3d& mag_uT) {
   const double horizontal = mag_world.head<2>().norm();
   if (!(horizontal > 0.1 * mag_world.norm())) return;  // near a magnetic pole: no heading
   const double heading = std::atan2(mag_world.y(), mag_world.x());
+  const double norm = mag_world.norm();
+  const double inclination = std::asin(std::clamp(mag_world.z() / norm, -1.0, 1.0));
   if (!have_mag_ref_) {  // the world's heading is defined by the first field seen
     have_mag_ref_ = true;
     mag_heading_ref_rad_ = heading;
+    mag_norm_ref_uT_ = norm;
+    mag_inclination_ref_rad_ = inclination;
     return;
   }
-  ++counters_.mag_updates;
+  // The earth's field has one strength and one dip: a reading that disagrees is no heading (an
+  // uncalibrated magnetometer's hard iron turning with the head, a nearby magnet or motor).
+  if (std::abs(norm / mag_norm_ref_uT_ - 1.0) > config_.mag_norm_tolerance ||
+      std::abs(inclination - mag_inclination_ref_rad_) > config_.mag_inclination_tolerance_rad) {
+    ++counters_.mag_rejected;
+    return;
+  }
   // The true heading is heading + e_z . (R dtheta): a yaw-only measurement.
   const Eigen::Matrix<double, 1, 3> H_t =
       Eigen::Vector3d::UnitZ().transpose() * q_world_imu_.toRotationMatrix();
   const Eigen::Matrix<double, 6, 1> PHt = P_.leftCols<3>() * H_t.transpose();
   const double S =
       H_t * PHt.head<3>() + config_.mag_heading_noise_rad * config_.mag_heading_noise_rad;
+  const double innovation = wrap_pi(mag_heading_ref_rad_ - heading);
+  // Beyond the gate the linear update is no longer valid, and it would tilt the estimate.
+  if (innovation * innovation > config_.mag_gate_sigma * config_.mag_gate_sigma * S) {
+    ++counters_.mag_rejected;
+    return;
+  }
+  ++counters_.mag_updates;
   const Eigen::Matrix<double, 6, 1> K = PHt / S;
-  correct(K * wrap_pi(mag_heading_ref_rad_ - heading));
+  correct(K * innovation);
   P_ -= K * (H_t * P_.topRows<3>());
   P_ = 0.5 * (P_ + P_.transpose()).eval();
 }

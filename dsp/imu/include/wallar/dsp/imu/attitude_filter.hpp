@@ -9,7 +9,9 @@
 /// gyro; the accelerometer's direction is a measurement of "up" in the IMU frame, with a noise
 /// that grows as |a| departs from g (the vehicle accelerates) and is skipped beyond a limit;
 /// a magnetometer, when a sample carries one, corrects the heading only (so a disturbed field
-/// never tilts the estimate). Gyro bias about the vertical axis is only observable from the
+/// never tilts the estimate), and only while its strength and dip are the first reading's and
+/// its heading is within a gate of the prediction (an uncalibrated or disturbed one is refused,
+/// counted). Gyro bias about the vertical axis is only observable from the
 /// magnetometer or from turns; without either it stays at its still-window value.
 ///
 /// Initialisation: samples are collected in a window of a fixed number of samples; when
@@ -46,7 +48,19 @@ struct AttitudeFilterConfig {
   double accel_noise_per_excess = 4.0;
   /// Beyond this departure of |a| from g the accelerometer is not used at all [m/s^2].
   double accel_reject_m_s2 = 3.0;
-  double mag_heading_noise_rad = 0.05;     //!< heading noise of the magnetometer
+  double mag_heading_noise_rad = 0.05;  //!< heading noise of the magnetometer
+  /// A reading whose strength differs from the first one's by more than this fraction, or
+  /// whose dip by more than this angle, is not used (not the earth's field alone).
+  double mag_norm_tolerance = 0.1;
+  double mag_inclination_tolerance_rad = 0.1;
+  /// A heading innovation beyond this many of its standard deviations is not used.
+  double mag_gate_sigma = 4.0;
+  /// Subtracted from every accelerometer sample (the calibration's, `wallar calibrate
+  /// accel-mag`) [m/s^2]: a bias tilts the still window's gravity by |b| / g.
+  Eigen::Vector3d accel_bias_m_s2 = Eigen::Vector3d::Zero();
+  /// The magnetometer is used as soft_iron * (m - hard_iron) (the calibration's).
+  Eigen::Vector3d mag_hard_iron_uT = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d mag_soft_iron = Eigen::Matrix3d::Identity();
   double initial_tilt_std_rad = 0.01;      //!< trust in the still window's gravity
   double initial_bias_std_rad_s = 2.0e-3;  //!< trust in the still window's gyro bias
   std::size_t init_window_samples = 200;   //!< still window: 1 s at 200 Hz
@@ -62,8 +76,9 @@ struct AttitudeFilterCounters {
   std::uint64_t accel_updates = 0;
   std::uint64_t accel_rejected = 0;  //!< |a| too far from g
   std::uint64_t mag_updates = 0;
-  std::uint64_t gaps = 0;         //!< dt > max_dt_ns: propagation skipped
-  std::uint64_t bad_samples = 0;  //!< non-finite or time not increasing: ignored
+  std::uint64_t mag_rejected = 0;  //!< strength, dip or heading not the reference field's
+  std::uint64_t gaps = 0;          //!< dt > max_dt_ns: propagation skipped
+  std::uint64_t bad_samples = 0;   //!< non-finite or time not increasing: ignored
 };
 
 class AttitudeFilter {
@@ -74,8 +89,9 @@ class AttitudeFilter {
   /// Starts from a known still estimate (gravity, gyro bias) at t_ns, skipping the window.
   void initialize(const StaticImuEstimate& still, TimeNs t_ns);
 
-  /// Feeds one sample. Returns true when the filter is initialised after it (the state is
-  /// meaningful). Before that the sample goes into the still window.
+  /// Feeds one sample, corrected by the config's accelerometer bias and magnetometer iron.
+  /// Returns true when the filter is initialised after it (the state is meaningful). Before
+  /// that the sample goes into the still window.
   bool update(const ImuSample& sample);
 
   [[nodiscard]] bool initialized() const { return initialized_; }
@@ -121,7 +137,9 @@ class AttitudeFilter {
   Eigen::Vector3d gyro_bias_rad_s_ = Eigen::Vector3d::Zero();
   Matrix6d P_ = Matrix6d::Zero();
   bool have_mag_ref_ = false;
-  double mag_heading_ref_rad_ = 0.0;  //!< world heading of the field at the first mag sample
+  double mag_heading_ref_rad_ = 0.0;      //!< world heading of the field at the first mag sample
+  double mag_norm_ref_uT_ = 0.0;          //!< its strength
+  double mag_inclination_ref_rad_ = 0.0;  //!< its dip below the horizon (negative: down)
   AttitudeFilterCounters counters_;
 };
 
