@@ -189,6 +189,47 @@ PY
   run run --board "$src/board/rpi5.yaml" --check; expect_rc 2; expect_out "board rpi5"
   expect_err "rpi5.yaml: calibration: /etc/wallar/calibration/camchain.yaml: no such file"
   expect_err "rpi5.yaml: display.card: /dev/dri/by-path/platform-axi:gpu-card: no such device"
+  # The same board against a fake Raspberry Pi 5 device tree (kernel 6.6.45+: the RP1 header
+  # chip is gpiochip0, labelled pinctrl-rp1; the udev links of both cameras and the display;
+  # i2c-1's controller and driver for the bus recovery): every device resolves.
+  pi=$tmp/pi5
+  mkdir -p "$pi/dev/v4l/by-path" "$pi/dev/dri/by-path" "$pi/etc/wallar/calibration"
+  for n in video0 video2 i2c-1 gpiochip0 gpiochip10 dri/card1; do : >"$pi/dev/$n"; done
+  ln -s ../../video0 "$pi/dev/v4l/by-path/platform-xhci-hcd.1-usb-0:1:1.0-video-index0"
+  ln -s ../../video2 "$pi/dev/v4l/by-path/platform-xhci-hcd.0-usb-0:1:1.0-video-index0"
+  ln -s ../card1 "$pi/dev/dri/by-path/platform-axi:gpu-card"
+  chip() {  # chip NODE SYSFS-CLASS-NAME LABEL LINES
+    mkdir -p "$pi/sys/bus/gpio/devices/$1/gpio/$2"
+    echo "$3" >"$pi/sys/bus/gpio/devices/$1/gpio/$2/label"
+    echo "$4" >"$pi/sys/bus/gpio/devices/$1/gpio/$2/ngpio"
+  }
+  chip gpiochip0 gpiochip512 pinctrl-rp1 54
+  chip gpiochip10 gpiochip566 gpio-brcmstb@107d508500 32
+  ctl=$pi/sys/devices/platform/axi/1000120000.pcie/1f00074000.i2c
+  mkdir -p "$ctl/i2c-1" "$pi/sys/bus/i2c/devices" "$pi/sys/bus/platform/drivers/i2c_designware"
+  ln -s ../../../devices/platform/axi/1000120000.pcie/1f00074000.i2c/i2c-1 "$pi/sys/bus/i2c/devices/i2c-1"
+  ln -s ../../../../../bus/platform/drivers/i2c_designware "$ctl/driver"
+  run eval synth-rig --out "$tmp/pical" --duration 0.5 --camera-rate 30 --imu-only; expect_rc 0
+  cp "$tmp/pical/mav0/camchain-imucam.yaml" "$pi/etc/wallar/calibration/camchain.yaml"
+  run run --board "$src/board/rpi5.yaml" --check --root "$pi"; expect_rc 0; expect_out "board rpi5: ok"
+  for line in "imu.data_ready.chip  *pinctrl-rp1 -> /dev/gpiochip0 (54 lines" \
+      "cameras.left.device  */dev/v4l/by-path/platform-xhci-hcd.1-usb-0:1:1.0-video-index0 -> /dev/video0" \
+      "cameras.right.device  */dev/v4l/by-path/platform-xhci-hcd.0-usb-0:1:1.0-video-index0 -> /dev/video2" \
+      "display.card  */dev/dri/by-path/platform-axi:gpu-card -> /dev/dri/card1" \
+      "imu.bus_recovery  *rebinds 1f00074000.i2c (i2c_designware)" "input.exit_button.chip  *pinctrl-rp1" \
+      "cameras.left mode  *640x480 YUYV @ 30 Hz, as calibrated" "camera modes  *not asked"; do
+    grep -q -- "$line" "$tmp/out" || fail "--check --root: no '$line': $(cat "$tmp/out")"
+  done
+  # An older kernel numbered the same chip gpiochip4: found by its label all the same.
+  mv "$pi/dev/gpiochip0" "$pi/dev/gpiochip4"; mv "$pi/sys/bus/gpio/devices/gpiochip0" "$pi/sys/bus/gpio/devices/gpiochip4"
+  run run --board "$src/board/rpi5.yaml" --check --root "$pi"; expect_rc 0
+  expect_out "pinctrl-rp1 -> /dev/gpiochip4 (54 lines"
+  # A camera mode the calibration does not have: exit 2, the key named.
+  sed 's/^    width: 640/    width: 752/' "$src/board/rpi5.yaml" >"$tmp/rpi5_752.yaml"
+  run run --board "$tmp/rpi5_752.yaml" --check --root "$pi"; expect_rc 2
+  expect_err "rpi5_752.yaml: cameras.left.width/height: 752x480 but"
+  run run --board "$src/board/rpi5.yaml" --root "$pi"; expect_rc 2; one_err_line
+  expect_err "--root: only with --check"
   printf 'board: {name: x}\nsource: replay\nreplay: {recording: r, sped: 2}\n' >"$tmp/bad.yaml"
   run run --board "$tmp/bad.yaml" --check; expect_rc 2; one_err_line
   expect_err "bad.yaml:3: unknown key 'replay.sped'"

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <fstream>
 #include <system_error>
 #include <vector>
 
@@ -64,6 +65,25 @@ std::optional<GpioChipInfo> read_gpio_chip_info(const fs::path& node) {
   }
   return GpioChipInfo{bounded(info.name, sizeof info.name), bounded(info.label, sizeof info.label),
                       info.lines};
+}
+
+GpioChipInfoReader gpio_chip_info_in(const fs::path& root) {
+  return [root](const fs::path& node) -> std::optional<GpioChipInfo> {
+    std::error_code ec;
+    if (fs::is_character_file(node, ec)) return read_gpio_chip_info(node);
+    const std::string name = node.filename().string();
+    if (!chip_number(name)) return std::nullopt;
+    const fs::path dir = root / "sys/bus/gpio/devices" / name / "gpio";
+    for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
+      std::ifstream label_file(e.path() / "label"), ngpio_file(e.path() / "ngpio");
+      std::string label;
+      unsigned lines = 0;
+      if (std::getline(label_file, label) && (ngpio_file >> lines)) {
+        return GpioChipInfo{name, label, lines};
+      }
+    }
+    return std::nullopt;
+  };
 }
 
 DeviceTree::DeviceTree(fs::path root, GpioChipInfoReader chip_info)

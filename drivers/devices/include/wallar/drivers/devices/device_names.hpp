@@ -41,6 +41,12 @@ using GpioChipInfoReader = std::function<std::optional<GpioChipInfo>(const std::
 /// The kernel's answer: opens the node and asks GPIO_GET_CHIPINFO_IOCTL.
 std::optional<GpioChipInfo> read_gpio_chip_info(const std::filesystem::path& node);
 
+/// For a tree copied from a board or made by a test (`wallar run --check --root DIR`): a node
+/// that is a character device is asked as above; any other file named gpiochipN is described by
+/// the kernel's sysfs under the same root, sys/bus/gpio/devices/gpiochipN/gpio/gpiochip*/label
+/// and ngpio (the legacy GPIO class every Debian and Raspberry Pi kernel builds).
+GpioChipInfoReader gpio_chip_info_in(const std::filesystem::path& root);
+
 class DeviceTree {
  public:
   explicit DeviceTree(std::filesystem::path root = "/",
