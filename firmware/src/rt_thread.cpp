@@ -64,11 +64,11 @@ class ThreadAttr {
 };
 
 /// The scheduling attributes for `sched`; 0 or the pthread_attr_* error.
-int set_sched(pthread_attr_t* attr, Sched sched, int priority) {
+int set_sched(pthread_attr_t* attr, Sched sched, int priority, bool round_robin) {
   if (sched == Sched::kInherit) return pthread_attr_setinheritsched(attr, PTHREAD_INHERIT_SCHED);
   int rc = pthread_attr_setinheritsched(attr, PTHREAD_EXPLICIT_SCHED);
   if (rc != 0) return rc;
-  const int policy = sched == Sched::kFifo ? SCHED_FIFO : SCHED_OTHER;
+  const int policy = sched != Sched::kFifo ? SCHED_OTHER : round_robin ? SCHED_RR : SCHED_FIFO;
   rc = pthread_attr_setschedpolicy(attr, policy);
   if (rc != 0) return rc;
   sched_param param{};
@@ -116,7 +116,8 @@ struct RtThread::State {
   // Written by the thread before `started`:
   bool has_clock = false;
   clockid_t clock{};
-  bool fifo = false;
+  bool fifo = false;  // SCHED_FIFO or SCHED_RR
+  bool round_robin = false;
   int priority = 0;
   // Written by the thread before `failed` / `finished`:
   std::string error;
@@ -195,7 +196,7 @@ void RtThread::start() {
               "RtThread '" + spec_.name + "': stack of " + std::to_string(stack_bytes) + " bytes");
         }
       }
-      int rc = set_sched(attr.get(), sched, spec_.priority);
+      int rc = set_sched(attr.get(), sched, spec_.priority, spec_.round_robin);
       if (rc == 0 && try_cpu >= 0) rc = set_cpu(attr.get(), try_cpu);
       if (rc == 0) rc = pthread_create(&handle_, attr.get(), &RtThread::entry, state_.get());
       if (rc == 0) {
@@ -225,9 +226,10 @@ void RtThread::start() {
   try {
     if (sched != wanted) {
       if (sched_error == 0) sched_error = pinned_error;
-      const std::string asked = wanted == Sched::kFifo
-                                    ? "SCHED_FIFO " + std::to_string(spec_.priority)
-                                    : std::string("SCHED_OTHER");
+      const std::string asked =
+          wanted == Sched::kFifo
+              ? (spec_.round_robin ? "SCHED_RR " : "SCHED_FIFO ") + std::to_string(spec_.priority)
+              : std::string("SCHED_OTHER");
       const std::string got =
           sched == Sched::kOther ? "running SCHED_OTHER" : "running the inherited policy";
       note(asked + (sched_error == EPERM ? " not permitted (" : " rejected (") +
@@ -244,6 +246,7 @@ void RtThread::start() {
 
   state_->started.wait(false, std::memory_order_acquire);
   placement_.fifo = state_->fifo;
+  placement_.round_robin = state_->round_robin;
   placement_.priority = state_->priority;
   placement_.cpu = pinned;
   placement_.fallback = std::move(fallback);
@@ -257,7 +260,8 @@ void* RtThread::entry(void* arg) {
   int policy = SCHED_OTHER;
   sched_param param{};
   if (pthread_getschedparam(self, &policy, &param) == 0) {
-    state->fifo = policy == SCHED_FIFO;
+    state->fifo = policy == SCHED_FIFO || policy == SCHED_RR;
+    state->round_robin = policy == SCHED_RR;
     state->priority = state->fifo ? param.sched_priority : 0;
   }
   state->started.store(true, std::memory_order_release);
@@ -343,21 +347,22 @@ std::exception_ptr RtThread::exception() const {
   return failed() ? state_->exception : std::exception_ptr();
 }
 
-ScopedThreadPriority::ScopedThreadPriority(int priority) {
+ScopedThreadPriority::ScopedThreadPriority(int priority, bool round_robin) {
   if (priority <= 0) return;
   sched_param old{};
   if (pthread_getschedparam(pthread_self(), &old_policy_, &old) != 0) return;
   old_priority_ = old.sched_priority;
   sched_param param{};
   param.sched_priority = priority;
-  const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
+  const int rc = pthread_setschedparam(pthread_self(), round_robin ? SCHED_RR : SCHED_FIFO, &param);
   if (rc == 0) {
     changed_ = true;
     placement_.fifo = true;
+    placement_.round_robin = round_robin;
     placement_.priority = priority;
     return;
   }
-  placement_.fallback = "SCHED_FIFO " + std::to_string(priority) +
+  placement_.fallback = (round_robin ? "SCHED_RR " : "SCHED_FIFO ") + std::to_string(priority) +
                         (rc == EPERM ? " not permitted (" : " rejected (") + errno_name(rc) +
                         "): running SCHED_OTHER";
 }

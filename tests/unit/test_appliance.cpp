@@ -233,7 +233,7 @@ TEST(ApplianceHil, AHungRenderIsSeenAndItsRecoveryToo) {
 // which every machine running the tests has; the CI machine has 2).
 TEST(ApplianceHil, TheBoardPlacesItsThreads) {
   BoardConfig board = sim_board();
-  board.threads.push_back({"tracking", std::nullopt, 1});
+  board.threads.push_back({"tracking", std::nullopt, 1, std::nullopt});
   ApplianceOptions o = quiet_options();
   o.view = false;
   o.replay.rate = 0.0;

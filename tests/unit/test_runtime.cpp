@@ -278,6 +278,26 @@ TEST(RtThread, FifoPriorityIsAppliedOrExplained) {
   EXPECT_GE(p.stack_bytes, 256u * 1024u);
 }
 
+TEST(RtThread, RoundRobinIsAppliedOrExplained) {
+  // A board's `policy: rr`: SCHED_RR at the priority, or the reason it could not be had.
+  int policy_seen = -1;
+  RtThread thread(ThreadSpec{.name = "rr40", .priority = 40, .round_robin = true}, [&] {
+    sched_param param{};
+    pthread_getschedparam(pthread_self(), &policy_seen, &param);
+  });
+  thread.join();
+  const firmware::ThreadPlacement& p = thread.placement();
+  EXPECT_NE(p.fifo, !p.fallback.empty()) << p.fallback;
+  if (p.fifo) {
+    EXPECT_TRUE(p.round_robin);
+    EXPECT_EQ(p.priority, 40);
+    EXPECT_EQ(policy_seen, SCHED_RR);
+  } else {
+    EXPECT_FALSE(p.round_robin);
+    EXPECT_NE(p.fallback.find("SCHED_RR 40"), std::string::npos) << p.fallback;
+  }
+}
+
 // The supervisor's loop on the main thread: SCHED_FIFO while the object lives, the thread's own
 // policy again after it (on a thread of its own here, so the test runner keeps its policy).
 TEST(ScopedThreadPriority, RaisesTheCallingThreadForItsScopeOrExplains) {

@@ -261,6 +261,26 @@ TEST(Board, ThreadPlacementsAreReadCheckedAndApplied) {
   std::string cpu = text;
   cpu.replace(cpu.find("cpu: 2"), 6, "cpu: x");
   EXPECT_THAT(board_error(cpu), HasSubstr("threads.tracking.cpu"));
+  // The policy: rr keeps the priority and asks for SCHED_RR, other drops a table priority.
+  const auto policies = parse_board(std::string(kLiveBoard) +
+                                        "threads:\n  capture: {policy: rr, priority: 65}\n"
+                                        "  imu: {policy: other}\n  tracking: {policy: fifo, "
+                                        "priority: 61}\n",
+                                    "b.yaml", ".");
+  const firmware::ThreadSpec rr = firmware::thread_spec("capture", true, &policies);
+  EXPECT_TRUE(rr.round_robin);
+  EXPECT_EQ(rr.priority, 65);
+  EXPECT_EQ(firmware::thread_spec("imu", true, &policies).priority, 0);  // table: 80
+  EXPECT_FALSE(firmware::thread_spec("tracking", true, &policies).round_robin);
+  EXPECT_EQ(firmware::thread_spec("tracking", true, &policies).priority, 61);
+  EXPECT_FALSE(firmware::thread_spec("capture", true, &b).round_robin);
+  EXPECT_THAT(board_error(std::string(kLiveBoard) + "threads:\n  imu: {policy: rr}\n"),
+              HasSubstr("'threads.imu.policy' 'rr' needs a real-time priority"));
+  EXPECT_THAT(
+      board_error(std::string(kLiveBoard) + "threads:\n  imu: {policy: other, priority: 5}\n"),
+      HasSubstr("'threads.imu.priority' must be 0 (or absent) with policy: other"));
+  EXPECT_THAT(board_error(std::string(kLiveBoard) + "threads:\n  imu: {policy: batch}\n"),
+              HasSubstr("must be fifo, rr or other, got 'batch'"));
   // The board's names are the thread table's, both ways.
   std::vector<std::string> table,
       board_names(std::begin(firmware::kThreadNames), std::end(firmware::kThreadNames));

@@ -199,7 +199,7 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
     for (const std::string_view thread : kThreadNames) {
       const YamlNode* n = th->find(std::string(thread));
       if (n == nullptr) continue;
-      n->check_keys({"priority", "cpu"});
+      n->check_keys({"policy", "priority", "cpu"});
       ThreadPlacementConfig t;
       t.name = std::string(thread);
       if (const YamlNode* p = n->find("priority")) {
@@ -211,6 +211,22 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
         const std::int64_t v = cpu->as_int();
         if (v < -1 || v > 1023) cpu->fail("must be a CPU number 0..1023, or -1 for any");
         t.cpu = static_cast<int>(v);
+      }
+      if (const YamlNode* p = n->find("policy")) {
+        const std::string v = p->as_string();
+        if (v == "other") {
+          t.policy = ThreadPolicy::kOther;
+          if (t.priority.value_or(0) != 0) {
+            n->at("priority").fail("must be 0 (or absent) with policy: other");
+          }
+        } else if (v == "fifo" || v == "rr") {
+          t.policy = v == "fifo" ? ThreadPolicy::kFifo : ThreadPolicy::kRoundRobin;
+          if (t.priority.value_or(0) == 0) {
+            p->fail("'" + v + "' needs a real-time priority: 'priority: 1..99' beside it");
+          }
+        } else {
+          p->fail("must be fifo, rr or other, got '" + v + "'");
+        }
       }
       b.threads.push_back(t);
     }

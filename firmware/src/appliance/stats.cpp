@@ -17,7 +17,8 @@ namespace {
 
 std::string policy_of(const RtThread& t) {
   const ThreadPlacement& p = t.placement();
-  return p.fifo ? "FIFO " + std::to_string(p.priority) : std::string("OTHER");
+  return p.fifo ? (p.round_robin ? "RR " : "FIFO ") + std::to_string(p.priority)
+                : std::string("OTHER");
 }
 
 }  // namespace

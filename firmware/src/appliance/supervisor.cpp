@@ -295,7 +295,8 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   // final adjustment, the report) the main thread is SCHED_OTHER again.
   std::optional<ScopedThreadPriority> supervisor_priority;
   if (realtime) {
-    supervisor_priority.emplace(thread_table_entry("supervisor", &board).priority);
+    const ThreadTableEntry entry = thread_table_entry("supervisor", &board);
+    supervisor_priority.emplace(entry.priority, entry.round_robin);
     if (!supervisor_priority->placement().fallback.empty())
       options.log("thread supervisor: " + supervisor_priority->placement().fallback);
   }

@@ -16,16 +16,16 @@ namespace {
 // for microseconds, and the watchdog's keep-alives must not wait for busy workers.
 constexpr std::size_t kMiB = 1024 * 1024;
 constexpr ThreadTableEntry kThreadTable[] = {
-    {"imu", 80, -1, 1 * kMiB, "IMU driver: FIFO, time stamps"},
-    {"capture", 70, -1, 1 * kMiB, "V4L2 capture and stereo pairing"},
-    {"replay", 70, -1, 2 * kMiB, "recording played as the sensors"},
-    {"tracking", 60, -1, 4 * kMiB, "IMU filter, tracker, degraded modes"},
-    {"mapping", 0, -1, 8 * kMiB, "key-frames, bundle adjustment"},
-    {"reconstruct", 0, -1, 4 * kMiB, "walls, floor, ceiling"},
-    {"render", 0, -1, 4 * kMiB, "headset view (EGL)"},
-    {"supervisor", 75, -1, 0, "health, stop, stats, watchdog (main thread)"},
-    {"log", 0, -1, 256 * 1024, "log records formatted and written"},
-    {"live", 0, -1, 1 * kMiB, "live server: encodes for Foxglove (--live)"},
+    {"imu", 80, -1, 1 * kMiB, "IMU driver: FIFO, time stamps", false},
+    {"capture", 70, -1, 1 * kMiB, "V4L2 capture and stereo pairing", false},
+    {"replay", 70, -1, 2 * kMiB, "recording played as the sensors", false},
+    {"tracking", 60, -1, 4 * kMiB, "IMU filter, tracker, degraded modes", false},
+    {"mapping", 0, -1, 8 * kMiB, "key-frames, bundle adjustment", false},
+    {"reconstruct", 0, -1, 4 * kMiB, "walls, floor, ceiling", false},
+    {"render", 0, -1, 4 * kMiB, "headset view (EGL)", false},
+    {"supervisor", 75, -1, 0, "health, stop, stats, watchdog (main thread)", false},
+    {"log", 0, -1, 256 * 1024, "log records formatted and written", false},
+    {"live", 0, -1, 1 * kMiB, "live server: encodes for Foxglove (--live)", false},
 };
 
 }  // namespace
@@ -41,6 +41,8 @@ ThreadTableEntry thread_table_entry(const char* name, const BoardConfig* board) 
         if (t.name != name) continue;
         if (t.priority) out.priority = *t.priority;
         if (t.cpu) out.cpu = *t.cpu;
+        if (t.policy == ThreadPolicy::kOther) out.priority = 0;
+        if (t.policy) out.round_robin = *t.policy == ThreadPolicy::kRoundRobin;
       }
     }
     return out;
@@ -55,6 +57,7 @@ ThreadSpec thread_spec(const char* name, bool realtime, const BoardConfig* board
   s.priority = realtime ? e.priority : 0;
   s.cpu = e.cpu;
   s.stack_bytes = e.stack_bytes;
+  s.round_robin = e.round_robin;
   return s;
 }
 

@@ -35,11 +35,15 @@ struct ThreadSpec {
   int priority = 0;             //!< 0: SCHED_OTHER; 1..99: SCHED_FIFO at that priority
   int cpu = -1;                 //!< pin to this CPU; -1: any CPU
   std::size_t stack_bytes = 0;  //!< 0: the default stack size (else rounded up to pages)
+  /// With priority > 0: SCHED_RR (time slices among threads of equal priority) instead of
+  /// SCHED_FIFO.
+  bool round_robin = false;
 };
 
 /// What a thread got.
 struct ThreadPlacement {
-  bool fifo = false;            //!< runs SCHED_FIFO
+  bool fifo = false;            //!< runs a real-time policy (SCHED_FIFO, or SCHED_RR)
+  bool round_robin = false;     //!< that policy is SCHED_RR
   int priority = 0;             //!< its real-time priority (0 when not SCHED_FIFO)
   int cpu = -1;                 //!< the CPU it is pinned to; -1: not pinned by us
   std::size_t stack_bytes = 0;  //!< its stack size
@@ -92,14 +96,15 @@ class RtThread {
   bool joined_ = false;
 };
 
-/// The calling thread at SCHED_FIFO `priority` while the object lives (0: left as it is), its
+/// The calling thread at SCHED_FIFO (SCHED_RR with `round_robin`) `priority` while the object
+/// lives (0: left as it is), its
 /// previous policy and priority back when it goes. Where the policy is refused the thread keeps
 /// its own, and placement().fallback says why in one line (as RtThread's). For a loop on a
 /// thread RtThread did not create: the appliance's supervisor on the main thread.
 /// Threading: constructed and destroyed on the thread it changes.
 class ScopedThreadPriority {
  public:
-  explicit ScopedThreadPriority(int priority);
+  explicit ScopedThreadPriority(int priority, bool round_robin = false);
   ~ScopedThreadPriority();
   ScopedThreadPriority(const ScopedThreadPriority&) = delete;
   ScopedThreadPriority& operator=(const ScopedThreadPriority&) = delete;

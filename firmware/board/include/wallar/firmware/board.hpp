@@ -78,10 +78,16 @@ struct TrackingConfig {
 
 /// threads.NAME: a thread of the appliance's thread table placed by the board (the thread table,
 /// firmware/appliance/thread_table.hpp, has the defaults and the names).
+/// threads.NAME.policy: the scheduling policy in real time.
+enum class ThreadPolicy { kOther, kFifo, kRoundRobin };
+
 struct ThreadPlacementConfig {
   std::string name;             //!< "tracking", "capture", ...
   std::optional<int> priority;  //!< SCHED_FIFO 1..99 in real time; 0: SCHED_OTHER
   std::optional<int> cpu;       //!< the CPU it is pinned to; -1: any
+  /// other (priority 0), fifo or rr (with a priority 1..99); absent: fifo for a priority above
+  /// 0, other for 0.
+  std::optional<ThreadPolicy> policy;
 };
 
 /// The names threads.NAME may take (the thread table's).

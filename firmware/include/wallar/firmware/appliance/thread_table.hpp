@@ -3,8 +3,8 @@
 /// @brief The thread table: every thread the appliance starts, in one place (name, SCHED_FIFO
 /// priority, CPU, stack, role). Priorities apply only when the appliance runs in real time and
 /// the system permits SCHED_FIFO (else SCHED_OTHER, said once per thread). A board file's
-/// `threads:` section overrides a thread's priority and CPU (board/rpi5.yaml keeps tracking
-/// off the CPU that takes the USB interrupts).
+/// `threads:` section overrides a thread's policy (fifo, rr, other), priority and CPU
+/// (board/rpi5.yaml keeps tracking off the CPU that takes the USB interrupts).
 ///
 /// Threading: constant data and pure functions; any thread.
 #pragma once
@@ -23,6 +23,7 @@ struct ThreadTableEntry {
   int cpu;       //!< -1: any
   std::size_t stack_bytes;
   const char* role;
+  bool round_robin;  //!< with priority > 0: SCHED_RR instead of SCHED_FIFO (a board's policy)
 };
 
 /// The table, in start order of the sensor side first.
