@@ -26,6 +26,7 @@ constexpr ThreadTableEntry kThreadTable[] = {
     {"supervisor", 75, -1, 0, "health, stop, stats, watchdog (main thread)"},
     {"log", 0, -1, 256 * 1024, "log records formatted and written"},
     {"live", 0, -1, 1 * kMiB, "live server: encodes for Foxglove (--live)"},
+    {"client", 0, -1, 1 * kMiB, "client API: planes and tracking state to apps (client:)"},
 };
 
 }  // namespace
