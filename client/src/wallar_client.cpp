@@ -190,13 +190,8 @@ bool read_answer(int fd, std::vector<std::uint8_t>& msg, int& memfd, std::string
     return false;
   }
   std::uint8_t buf[4096];
-  iovec iov{buf, sizeof buf};
-  alignas(cmsghdr) char control[CMSG_SPACE(sizeof(int))] = {};
-  msghdr mh{};
-  mh.msg_iov = &iov;
-  mh.msg_iovlen = 1;
-  mh.msg_control = control;
-  mh.msg_controllen = sizeof control;
+  cw::FdMessage m(buf, sizeof buf);
+  msghdr& mh = m.header;
   const ssize_t n = recvmsg(fd, &mh, MSG_CMSG_CLOEXEC);
   if (n <= 0) {
     error = n == 0 ? "the firmware closed the connection without an answer"

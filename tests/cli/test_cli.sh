@@ -456,6 +456,11 @@ for name in ('imu -> filter', 'capture -> tracking', 'tracking'):
     print(f'{name}: p50 {pa:.2f} -> {pb:.2f} ms, p99 {sa[name]["p99_ms"]:.2f} -> {sb[name]["p99_ms"]:.2f} ms')
     assert pb <= 1.5 * pa + 3.0, (name, pa, pb)
     assert sb[name]['p99_ms'] <= 2.0 * sa[name]['p99_ms'] + 20.0, (name, sa[name], sb[name])
+# The client API's writer on the tracking thread allocates nothing (the wallar binary counts).
+rows = {t['name']: t for t in b['threads']}
+assert 'client' in rows and 'accepted 2' in rows['client']['note'], rows.get('client')
+a = rows['tracking']['allocations_after_start']
+assert a is None or a == 0, ('tracking', a)
 print('client', c)
 PY
   ;;

@@ -651,13 +651,8 @@ void ClientServer::hello(Client& c, const std::uint8_t* body, std::size_t n) {
   // so its buffer takes them whole.
   const auto m = cw::encode_answer(cw::MsgType::kAccepted, cw::kProtocolVersion,
                                    static_cast<std::uint32_t>(cw::kShmBytes), "wallar");
-  iovec iov{const_cast<std::uint8_t*>(m.data()), m.size()};
-  alignas(cmsghdr) char control[CMSG_SPACE(sizeof(int))] = {};
-  msghdr mh{};
-  mh.msg_iov = &iov;
-  mh.msg_iovlen = 1;
-  mh.msg_control = control;
-  mh.msg_controllen = sizeof control;
+  cw::FdMessage fm(const_cast<std::uint8_t*>(m.data()), m.size());
+  msghdr& mh = fm.header;
   cmsghdr* cm = CMSG_FIRSTHDR(&mh);
   cm->cmsg_level = SOL_SOCKET;
   cm->cmsg_type = SCM_RIGHTS;

@@ -22,6 +22,8 @@
 /// read_shared_pose(): any number of threads and processes, concurrently with the writer.
 #pragma once
 
+#include <sys/socket.h>
+
 #include <array>
 #include <atomic>
 #include <bit>
@@ -266,6 +268,22 @@ inline std::optional<PlaneBatch> parse_planes(const std::uint8_t* body, std::siz
   if (!r.ok || r.at != n) return std::nullopt;
   return b;
 }
+
+/// One message with room for one file descriptor (SCM_RIGHTS): the accepted answer, which
+/// carries the memfd, for sendmsg() and recvmsg().
+struct FdMessage {
+  iovec iov{};
+  alignas(cmsghdr) char control[CMSG_SPACE(sizeof(int))] = {};
+  msghdr header{};
+  FdMessage(void* data, std::size_t bytes) : iov{data, bytes} {
+    header.msg_iov = &iov;
+    header.msg_iovlen = 1;
+    header.msg_control = control;
+    header.msg_controllen = sizeof control;
+  }
+  FdMessage(const FdMessage&) = delete;
+  FdMessage& operator=(const FdMessage&) = delete;
+};
 
 // ---- shared pose --------------------------------------------------------------------------
 
