@@ -11,6 +11,7 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -21,6 +22,7 @@
 
 #include "wallar/client/wire.hpp"
 #include "wallar/core/error.hpp"
+#include "wallar/drivers/recording/euroc.hpp"
 #include "wallar/firmware/appliance/client_server.hpp"
 #include "wallar_client.h"
 #include "wallar_client.hpp"
@@ -585,4 +587,81 @@ TEST(ClientServer, ASecondServerOnTheSameSocketIsRefusedAndAStaleOneReplaced) {
   TripleBuffer<WallModel> walls;
   EXPECT_THROW(ClientServer(config, SE3d::Identity(), pose, walls), InputError);
   fs::remove(file);
+}
+
+// The prediction on real motion: EuRoC V1_01's ground truth (20 Hz, the body = the IMU) as the
+// tracked poses and its 200 Hz gyro (bias-corrected with the ground truth's bias) as the IMU,
+// through the shared page and wallar_client_locate, against the ground truth at t_pose + h
+// (interpolated). h = 0, 16, 33 ms and the next pose (50 ms). Beside it: holding the last
+// pose (no prediction). docs/results.md ("Client API: pose prediction") has the figures.
+TEST(ClientServer, PredictionOnTheEurocV101FlightBeatsHoldingThePose) {
+  const auto rec = recording::read_euroc_imu(fs::path(WALLAR_TEST_DATA) / "euroc_v1_01_imu");
+  ASSERT_GT(rec.ground_truth.size(), 2000u);
+  const std::string path = temp_socket("flight.sock");
+  Fixture f(path);
+  wallar::Client client(path, "flight");
+  SharedPosePublisher& w = f.server->publisher();
+  const Eigen::Matrix3d R_body_imu = rec.imu_calib.T_body_imu.linear();
+  constexpr TimeNs kHorizons[] = {0, 16 * kNsPerMs, 33 * kNsPerMs, 50 * kNsPerMs};
+  std::vector<double> rot_deg[4], pos_mm[4], hold_rot_deg[4], hold_pos_mm[4];
+  std::size_t imu = 0;
+  const auto& gt = rec.ground_truth;
+  auto rot_err = [](const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
+    return Eigen::AngleAxisd(a.transpose() * b).angle() * 180.0 / M_PI;
+  };
+  for (std::size_t k = 0; k + 2 < gt.size(); ++k) {
+    const TimeNs t_k = gt[k].t_ns;
+    w.on_pose(t_k, gt[k].T_world_body, cw::Tracking::kTracking, 0, 0);
+    while (imu < rec.imu.size() && rec.imu[imu].t_ns <= t_k) ++imu;  // before the pose
+    for (int h = 0; h < 4; ++h) {
+      const TimeNs t = t_k + kHorizons[h];
+      // The IMU samples up to the display time have arrived (the newest one, at most 5 ms old).
+      while (imu < rec.imu.size() && rec.imu[imu].t_ns <= t) {
+        const ImuSample& s = rec.imu[imu++];
+        const auto g = recording::ground_truth_at(gt, s.t_ns, 60 * kNsPerMs);
+        const Eigen::Vector3d bias = g ? g->gyro_bias_rad_s : Eigen::Vector3d::Zero();
+        w.on_imu(s.t_ns, R_body_imu * (s.gyro_rad_s - bias));
+      }
+      // Between two rows 50 ms apart (the ground truth's rate): interpolated.
+      const auto truth = recording::ground_truth_at(gt, t, 60 * kNsPerMs);
+      ASSERT_TRUE(truth) << k << " of " << gt.size();
+      const wallar_pose p = client.locate(t);
+      if (k == 0) continue;  // no velocity yet
+      ASSERT_EQ(p.flags, 15u);
+      const Eigen::Quaterniond q(p.q_world_body_xyzw[3], p.q_world_body_xyzw[0],
+                                 p.q_world_body_xyzw[1], p.q_world_body_xyzw[2]);
+      const Eigen::Vector3d pos(p.p_world_body_m[0], p.p_world_body_m[1], p.p_world_body_m[2]);
+      rot_deg[h].push_back(rot_err(q.toRotationMatrix(), truth->T_world_body.linear()));
+      pos_mm[h].push_back(1e3 * (pos - truth->T_world_body.translation()).norm());
+      hold_rot_deg[h].push_back(rot_err(gt[k].T_world_body.linear(), truth->T_world_body.linear()));
+      hold_pos_mm[h].push_back(
+          1e3 * (gt[k].T_world_body.translation() - truth->T_world_body.translation()).norm());
+    }
+  }
+  auto pct = [](std::vector<double> v, double q) {
+    std::sort(v.begin(), v.end());
+    return v[static_cast<std::size_t>(q * double(v.size() - 1))];
+  };
+  for (int h = 0; h < 4; ++h) {
+    std::printf(
+        "ahead %2lld ms: rotation median %.3f p95 %.3f deg (held %.3f / %.3f), position median "
+        "%.2f p95 %.2f mm (held %.2f / %.2f)\n",
+        static_cast<long long>(kHorizons[h] / kNsPerMs), pct(rot_deg[h], 0.5),
+        pct(rot_deg[h], 0.95), pct(hold_rot_deg[h], 0.5), pct(hold_rot_deg[h], 0.95),
+        pct(pos_mm[h], 0.5), pct(pos_mm[h], 0.95), pct(hold_pos_mm[h], 0.5),
+        pct(hold_pos_mm[h], 0.95));
+  }
+  // At the pose itself: the pose.
+  EXPECT_LT(pct(rot_deg[0], 0.95), 1e-6);
+  EXPECT_LT(pct(pos_mm[0], 0.95), 1e-6);
+  for (int h = 1; h < 4; ++h) {
+    // The gyro's rotation since the pose: far better than holding it.
+    EXPECT_LT(pct(rot_deg[h], 0.5), 0.5 * pct(hold_rot_deg[h], 0.5)) << h;
+    EXPECT_LT(pct(rot_deg[h], 0.95), 0.5 * pct(hold_rot_deg[h], 0.95)) << h;
+    // The velocity: better than holding the position.
+    EXPECT_LT(pct(pos_mm[h], 0.5), pct(hold_pos_mm[h], 0.5)) << h;
+  }
+  // Absolute bounds for this easy flight (EuRoC V1_01; measured 2026-12, docs/results.md).
+  EXPECT_LT(pct(rot_deg[2], 0.95), 0.2);  // measured 0.073 deg
+  EXPECT_LT(pct(pos_mm[2], 0.95), 5.0);   // measured 1.95 mm
 }
