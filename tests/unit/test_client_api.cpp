@@ -149,10 +149,17 @@ TEST(ClientWire, SeqlockInSharedMemoryNeverGivesATornPose) {
   std::atomic<bool> done{false};
   std::thread t([&] {
     cw::PosePayload p;
-    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    // At least 400 ms of racing: on a loaded 2-core machine the two threads overlap rarely,
+    // and a writer that forgot the odd sequence was caught in 1 run of 3 at 10 ms.
+    const auto start = std::chrono::steady_clock::now();
+    const auto give_up = start + std::chrono::seconds(10);
     std::uint64_t k = 0;
-    while (k < kMinStores ||
-           (reads.load() < kMinReads && std::chrono::steady_clock::now() < give_up)) {
+    auto more = [&] {
+      const auto now = std::chrono::steady_clock::now();
+      return k < kMinStores || now < start + std::chrono::milliseconds(400) ||
+             (reads.load() < kMinReads && now < give_up);
+    };
+    while (!done.load() && more()) {  // the reader stops it early on a bad read
       ++k;
       // Every field a function of k: a torn read mixes two k's.
       p.t_pose_ns = static_cast<std::int64_t>(k);
@@ -169,8 +176,9 @@ TEST(ClientWire, SeqlockInSharedMemoryNeverGivesATornPose) {
     done.store(true);
   });
   std::uint64_t torn = 0, last = 0;
+  std::string bad;  // the first inconsistent read (the writer is joined before asserting)
   cw::PosePayload p;
-  while (!done.load()) {
+  while (!done.load() && bad.empty()) {
     if (!cw::try_read_shared_pose(block, p)) {
       ++torn;
       continue;
@@ -178,17 +186,23 @@ TEST(ClientWire, SeqlockInSharedMemoryNeverGivesATornPose) {
     const auto k = p.updates;
     if (k == 0) continue;  // the initial value, before the first store
     reads.fetch_add(1);
-    ASSERT_GE(k, last) << "went backwards";
-    last = k;
-    ASSERT_EQ(p.t_pose_ns, static_cast<std::int64_t>(k));
-    ASSERT_EQ(p.t_imu_ns, static_cast<std::int64_t>(3 * k));
+    bool ok = k >= last && p.t_pose_ns == static_cast<std::int64_t>(k) &&
+              p.t_imu_ns == static_cast<std::int64_t>(3 * k) && p.q_world_body_xyzw[3] == double(k);
     for (int i = 0; i < 3; ++i) {
-      ASSERT_EQ(p.p_world_body_m[i], double(k) * (i + 1));
-      ASSERT_EQ(p.omega_body_rad_s[i], -double(k) * (i + 1));
+      ok = ok && p.p_world_body_m[i] == double(k) * (i + 1) &&
+           p.omega_body_rad_s[i] == -double(k) * (i + 1);
     }
-    ASSERT_EQ(p.q_world_body_xyzw[3], double(k));
+    if (!ok) bad = "read " + std::to_string(k) + " after " + std::to_string(last);
+    last = k;
   }
+  done.store(true);
   t.join();
+  ASSERT_TRUE(bad.empty()) << "a torn or stale value: " << bad;
+  // A store in progress (an odd sequence, as a writer preempted mid-store leaves it): no read.
+  auto* seq = &static_cast<cw::SharedPoseBlock*>(w)->seq;
+  cw::Word(*seq).fetch_add(1);
+  EXPECT_FALSE(cw::try_read_shared_pose(block, p));
+  cw::Word(*seq).fetch_add(1);
   ASSERT_TRUE(cw::try_read_shared_pose(block, p));
   EXPECT_EQ(p.updates, stores.load());
   EXPECT_GE(reads.load(), kMinReads);
@@ -664,4 +678,35 @@ TEST(ClientServer, PredictionOnTheEurocV101FlightBeatsHoldingThePose) {
   // Absolute bounds for this easy flight (EuRoC V1_01; measured 2026-12, docs/results.md).
   EXPECT_LT(pct(rot_deg[2], 0.95), 0.2);  // measured 0.073 deg
   EXPECT_LT(pct(pos_mm[2], 0.95), 5.0);   // measured 1.95 mm
+}
+
+TEST(ClientBoard, TheClientSectionIsReadAndBadValuesNameTheirKey) {
+  const std::string head = "board: {name: t}\nsource: replay\nreplay: {recording: /r}\n";
+  const BoardConfig none = parse_board(head, "b.yaml", "/base");
+  EXPECT_FALSE(none.client);
+  const BoardConfig b = parse_board(
+      head + "client: {socket: run/c.sock, group: apps, mode: '0600'}\n", "b.yaml", "/base");
+  ASSERT_TRUE(b.client);
+  EXPECT_EQ(b.client->socket, "/base/run/c.sock");  // relative to the board file's folder
+  EXPECT_EQ(b.client->group, "apps");
+  EXPECT_EQ(b.client->mode, 0600u);
+  EXPECT_EQ(parse_board(head + "client: {mode: 0640}\n", "b.yaml", "/base").client->mode, 0640u);
+  const BoardConfig d = parse_board(head + "client: {}\n", "b.yaml", "/base");
+  EXPECT_EQ(d.client->socket, "/run/wallar/client.sock");
+  EXPECT_EQ(d.client->mode, 0660u);
+  auto error_of = [&](const std::string& section) {
+    try {
+      (void)parse_board(head + section, "b.yaml", "/base");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(error_of("client: {mode: rw}\n").find("b.yaml:4: 'client.mode' must be octal"),
+            std::string::npos)
+      << error_of("client: {mode: rw}\n");
+  EXPECT_NE(error_of("client: {mode: '0440'}\n").find("client.mode"), std::string::npos);
+  EXPECT_NE(error_of("client: {socket: /" + std::string(120, 'x') + "}\n").find("client.socket"),
+            std::string::npos);
+  EXPECT_NE(error_of("client: {port: 3}\n").find("port"), std::string::npos);
 }
