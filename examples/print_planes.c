@@ -13,6 +13,8 @@
  *
  * Threading: one thread (the C API's contract for everything but locate()).
  */
+#define _POSIX_C_SOURCE 200809L /* clock_gettime, nanosleep under -std=c11 */
+
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
