@@ -463,6 +463,32 @@ a = rows['tracking']['allocations_after_start']
 assert a is None or a == 0, ('tracking', a)
 print('client', c)
 PY
+  # SO_PEERCRED: with the socket open to everyone (mode 0666), another user gets past the
+  # kernel but is refused at its hello, with the firmware's message; the owner is served.
+  if [ -n "$other" ]; then
+    sed 's|recording: \.\./|recording: '"$src"'/|' "$src/board/sim.yaml" >"$tmp/open.yaml"
+    printf 'client:\n  socket: %s\n  mode: 0666\n  group: no-such-group-here\n' "$sock" >>"$tmp/open.yaml"
+    ${WALLAR_EMULATOR:-} "$bin" run --board "$tmp/open.yaml" --loop 0 --duration 4 --no-view \
+      --json --out "$tmp/o3" >"$tmp/run3.json" 2>"$tmp/run3.err" &
+    pid=$!
+    for _ in $(seq 1 200); do [ -S "$sock" ] && break; sleep 0.05; done
+    [ "$(stat -c %a "$sock")" = 666 ] || fail "socket mode $(stat -c %a "$sock"), expected 666"
+    grep -q "no group no-such-group-here on this system: the owner only" "$tmp/run3.err" ||
+      fail "no word of the missing group: $(cat "$tmp/run3.err")"
+    cred=$(setpriv --reuid=65534 --regid=65534 --clear-groups /usr/bin/python3 -c "
+import socket, struct
+s = socket.socket(socket.AF_UNIX)
+s.connect('$sock')
+s.sendall(struct.pack('<IHHII', 8, 1, 0, 0x524c4157, 1))
+print(s.recv(4096)[12:].decode())" 2>&1)
+    ${WALLAR_EMULATOR:-} "$pp" --socket "$sock" --wait 5 --duration 1 >"$tmp/pp3" 2>&1 ||
+      fail "the owner was not served: $(cat "$tmp/pp3")"
+    finish_client_run 3
+    [ "$cred" = "uid 65534 may not use the client API (group none)" ] ||
+      fail "uid 65534 past SO_PEERCRED: $cred"
+    python3 -c "import json,sys; c=json.load(open('$tmp/run3.json'))['client']; sys.exit(0 if c['refused']==1 and c['accepted']==1 else 1)" ||
+      fail "run 3 counters: $(python3 -c "import json; print(json.load(open('$tmp/run3.json'))['client'])")"
+  fi
   ;;
 viewer)
   # The viewer page on the live server's port, in headless Chromium (Debian's chromium): it
