@@ -344,6 +344,11 @@ client)
     wait $pid; local rc=$?
     [ $rc = 0 ] || fail "run $1 exited $rc: $(cat "$tmp/run$1.err")"
   }
+  # Bad paths: one line naming the key, exit 2, before anything runs.
+  run run --board "$src/board/sim.yaml" --client-socket "$tmp" --duration 1 --no-view --out "$tmp/ob"
+  expect_rc 2; one_err_line; expect_err "client.socket $tmp: exists and is not a socket"
+  run run --board "$src/board/sim.yaml" --client-socket "/$(printf 'x%.0s' $(seq 1 110))" --no-view
+  expect_rc 2; one_err_line; expect_err "a UNIX socket's path is at most 107 bytes"
   start_client_run 1
   ${WALLAR_EMULATOR:-} "$pp" --socket "$sock" --rate 30 --ahead-ms 16 --wait 20 >"$tmp/pp1" 2>"$tmp/pp1.err" ||
     fail "print_planes: $(cat "$tmp/pp1.err")"
