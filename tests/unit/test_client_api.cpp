@@ -60,11 +60,19 @@ WallModel room(std::uint64_t version) {
   return m;
 }
 
+// This process's folder of sockets, removed at exit.
+struct SocketDir {
+  fs::path dir = fs::temp_directory_path() / ("wallar_client_test_" + std::to_string(getpid()));
+  SocketDir() { fs::create_directories(dir); }
+  ~SocketDir() {
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+  }
+};
+
 std::string temp_socket(const char* name) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("wallar_client_test_" + std::to_string(getpid()));
-  fs::create_directories(dir);
-  return (dir / name).string();
+  static const SocketDir sockets;
+  return (sockets.dir / name).string();
 }
 
 int raw_connect(const std::string& path) {
