@@ -482,6 +482,7 @@ void ClientServer::loop() {
 }
 
 void ClientServer::step(bool final_pass) {
+  wakeups_.fetch_add(1, std::memory_order_relaxed);
   if (!final_pass) {
     std::vector<pollfd> fds;
     fds.reserve(clients_.size() + 2);

@@ -341,7 +341,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
       threads.push_back(row_of(*live->thread(), run_ns, 0, 0, nullptr));
     }
     if (client && client->thread() != nullptr) {
-      threads.push_back(row_of(*client->thread(), run_ns, 0, 0, nullptr));
+      threads.push_back(row_of(*client->thread(), run_ns, client->wakeups(), 0, nullptr));
       const ClientServerCounters c = client->counters();
       threads.back().note = "clients " + std::to_string(c.clients) + ", accepted " +
                             std::to_string(c.accepted) + ", dropped " + std::to_string(c.dropped) +

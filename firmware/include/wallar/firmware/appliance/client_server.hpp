@@ -145,6 +145,8 @@ class ClientServer {
   /// counters() as (name, value) for the run's report and the stats note.
   [[nodiscard]] std::vector<std::pair<const char*, std::uint64_t>> counter_list() const;
   [[nodiscard]] const std::string& path() const { return config_.socket; }
+  /// The client thread's loop passes (the stats table's wake-ups).
+  [[nodiscard]] std::uint64_t wakeups() const { return wakeups_.load(std::memory_order_relaxed); }
 
  private:
   struct Client;
@@ -180,7 +182,7 @@ class ClientServer {
   std::vector<std::uint8_t> msg_;
 
   std::atomic<std::uint64_t> accepted_{0}, refused_{0}, malformed_{0}, timeouts_{0}, dropped_{0},
-      resyncs_{0}, sent_bytes_{0}, clients_now_{0}, plane_models_{0};
+      resyncs_{0}, sent_bytes_{0}, clients_now_{0}, plane_models_{0}, wakeups_{0};
   std::atomic<bool> stop_{false};
   std::atomic<DurationNs> flush_ns_{0};
   std::unique_ptr<RtThread> thread_;
