@@ -7,7 +7,8 @@
  *
  *   print_planes --socket /run/wallar/client.sock [--rate 30] [--ahead-ms 16] [--wait 10]
  *
- * Output lines: "pose t_ns=... p=x,y,z q=x,y,z,w flags=F tracking=T", "event ...", and per
+ * Output lines: "pose t_ns=... t_pose_ns=... p=x,y,z q=x,y,z,w flags=F tracking=T" (t_ns the
+ * display time asked for, t_pose_ns the pose it was predicted from), "event ...", and per
  * change a snapshot: "snapshot model=V planes=N" then N lines "plane id=... label=...
  * orientation=... changes=... extent=W,H world=x,y,z;x,y,z;..." (the polygon in the world).
  *
@@ -148,10 +149,13 @@ int main(int argc, char** argv) {
       wallar_pose pose;
       const int64_t t = wallar_client_now_ns(c) + (int64_t)(ahead_ms * 1e6);
       if (wallar_client_locate(c, t, &pose) == 0) {
-        printf("pose t_ns=%lld p=%.4f,%.4f,%.4f q=%.5f,%.5f,%.5f,%.5f flags=%u tracking=%d\n",
-               (long long)pose.t_ns, pose.p_world_body_m[0], pose.p_world_body_m[1],
-               pose.p_world_body_m[2], pose.q_world_body_xyzw[0], pose.q_world_body_xyzw[1],
-               pose.q_world_body_xyzw[2], pose.q_world_body_xyzw[3], pose.flags, pose.tracking);
+        printf(
+            "pose t_ns=%lld t_pose_ns=%lld p=%.5f,%.5f,%.5f q=%.6f,%.6f,%.6f,%.6f flags=%u "
+            "tracking=%d\n",
+            (long long)pose.t_ns, (long long)pose.t_pose_ns, pose.p_world_body_m[0],
+            pose.p_world_body_m[1], pose.p_world_body_m[2], pose.q_world_body_xyzw[0],
+            pose.q_world_body_xyzw[1], pose.q_world_body_xyzw[2], pose.q_world_body_xyzw[3],
+            pose.flags, pose.tracking);
       }
       next_ns += period_ns;
       if (next_ns < now) next_ns = now + period_ns;

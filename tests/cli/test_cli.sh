@@ -495,6 +495,51 @@ print(s.recv(4096)[12:].decode())" 2>&1)
       fail "run 3 counters: $(python3 -c "import json; print(json.load(open('$tmp/run3.json'))['client'])")"
   fi
   ;;
+client_prediction)
+  # The client API's prediction on the pipeline: a synthetic 6 s of quick turns (300 deg/s
+  # peaks) replayed in real time through `wallar run --client-socket`, print_planes asking for
+  # the pose at now, now + 16 ms and now + 33 ms at 50 Hz; each pose against the ground truth
+  # (tests/client/prediction_error.py), beside holding the pose it came from. Figures:
+  # docs/results.md ("Client API: pose prediction").
+  pp=${WALLAR_PRINT_PLANES:-}
+  [ -x "$pp" ] || fail "no print_planes binary (WALLAR_PRINT_PLANES='$pp')"
+  if [ -n "${WALLAR_EMULATOR:-}${WALLAR_SANITIZE:-}" ]; then
+    echo "skipped: real-time replay under an emulator or a sanitizer"
+    exit 77
+  fi
+  wallar eval synth-rig --out "$tmp/rec" --motion quick-turns --duration 6 --blur off \
+    >"$tmp/gen" 2>&1 || fail "synth-rig: $(cat "$tmp/gen")"
+  sed 's|recording: \.\./tests/data/euroc_v1_01_still|recording: '"$tmp/rec"'|' \
+    "$src/board/sim.yaml" >"$tmp/board.yaml"
+  wallar run --board "$tmp/board.yaml" --client-socket "$tmp/c.sock" --no-view --json \
+    --out "$tmp/o" >"$tmp/run.json" 2>"$tmp/run.err" &
+  pid=$!
+  pps=()
+  for a in 0 16 33; do
+    "$pp" --socket "$tmp/c.sock" --rate 50 --ahead-ms $a --wait 20 >"$tmp/pp$a" 2>&1 &
+    pps+=($!)
+  done
+  wait $pid || fail "run: $(cat "$tmp/run.err")"
+  for p in "${pps[@]}"; do wait "$p" || fail "print_planes exited $?"; done
+  for a in 0 16 33; do
+    python3 "$src/tests/client/prediction_error.py" "$tmp/rec/mav0" "$tmp/o/trajectory.tum" \
+      "$tmp/pp$a" --json >"$tmp/err$a" || fail "prediction_error.py on +$a ms"
+    python3 - "$tmp/err$a" "$a" <<'PY' || fail "prediction at +$a ms: $(cat "$tmp/err$a")"
+import json, sys
+e = json.load(open(sys.argv[1]))
+pr, held = e['predicted'], e['held']
+print(f"+{sys.argv[2]} ms (median {e['ahead_ms']['median']:.0f} ms past the pose, {e['poses']} poses): "
+      f"rotation p95 {pr['rot_deg_p95']:.3f} deg (held {held['rot_deg_p95']:.3f}), "
+      f"position p95 {pr['pos_mm_p95']:.2f} mm (held {held['pos_mm_p95']:.2f})")
+assert e['poses'] > 150, e
+# The turns: the gyro since the pose must remove most of a held pose's error.
+assert pr['rot_deg_p95'] < 0.5 * held['rot_deg_p95'], e
+assert pr['pos_mm_p95'] < held['pos_mm_p95'], e
+# Generous bounds (measured: 0.13, 0.09, 0.75 deg and 4.3, 6.9, 10.7 mm p95).
+assert pr['rot_deg_p95'] < 2.0 and pr['pos_mm_p95'] < 25.0, e
+PY
+  done
+  ;;
 viewer)
   # The viewer page on the live server's port, in headless Chromium (Debian's chromium): it
   # draws the map, the walls, the head and both cameras from the running appliance, and the
