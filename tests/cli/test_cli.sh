@@ -387,7 +387,8 @@ print('planes', {i: p[0] for i, p in planes.items()}, 'client', c)
 PY
   # Run 2: the same, with hostile and frozen clients beside print_planes.
   start_client_run 2
-  for _ in $(seq 1 200); do [ -S "$sock" ] && break; sleep 0.05; done
+  # The log line comes once the socket has its mode and group (it is bound with 0600 first).
+  for _ in $(seq 1 300); do grep -q "client API on" "$tmp/run2.err" && break; sleep 0.05; done
   [ -S "$sock" ] || fail "no socket: $(cat "$tmp/run2.err")"
   [ "$(stat -c %a "$sock")" = 660 ] || fail "socket mode $(stat -c %a "$sock")"
   python3 - "$sock" "$secs" >"$tmp/hostile" 2>&1 <<'PY' &
@@ -476,7 +477,7 @@ PY
     ${WALLAR_EMULATOR:-} "$bin" run --board "$tmp/open.yaml" --loop 0 --duration 4 --no-view \
       --json --out "$tmp/o3" >"$tmp/run3.json" 2>"$tmp/run3.err" &
     pid=$!
-    for _ in $(seq 1 200); do [ -S "$sock" ] && break; sleep 0.05; done
+    for _ in $(seq 1 300); do grep -q "client API on" "$tmp/run3.err" && break; sleep 0.05; done
     [ "$(stat -c %a "$sock")" = 666 ] || fail "socket mode $(stat -c %a "$sock"), expected 666"
     grep -q "no group no-such-group-here on this system: the owner only" "$tmp/run3.err" ||
       fail "no word of the missing group: $(cat "$tmp/run3.err")"
