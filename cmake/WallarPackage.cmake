@@ -2,7 +2,8 @@
 # The Debian package: `cpack --config <build>/CPackConfig.cmake` (tools/package wraps it) turns
 # this build's install tree into wallar_<version>_<arch>.deb for bookworm: the binary, the
 # systemd unit, the board files, /etc/wallar/board.yaml (a conffile), udev rules, the manual
-# page, and maintainer scripts that create the service user and enable the service
+# page, libwallar-client (the apps' library, its headers and pkg-config file), and maintainer
+# scripts that create the service user and enable the service
 # (tools/debian/). The cross build makes the arm64 package, a host build the amd64 one.
 
 set(_deb_src ${PROJECT_SOURCE_DIR}/tools/debian)
@@ -63,8 +64,13 @@ string(CONCAT CPACK_DEBIAN_PACKAGE_DESCRIPTION
 # Library dependencies from the binary's ELF (dpkg-shlibdeps, which finds arm64 libraries of the
 # multiarch installation too); the maintainer scripts' tools by hand.
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
+# libwallar-client.so.0 (the client API's library, client/): its shlibs file and the ldconfig
+# trigger come from CPack.
+set(CPACK_DEBIAN_PACKAGE_GENERATE_SHLIBS ON)
+set(CPACK_DEBIAN_PACKAGE_GENERATE_SHLIBS_POLICY ">=")
 set(CPACK_DEBIAN_PACKAGE_DEPENDS "adduser, init-system-helpers (>= 1.52), systemd")
 set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA
-    ${_deb_src}/postinst ${_deb_src}/prerm ${_deb_src}/postrm ${_deb_src}/conffiles)
+    ${_deb_src}/postinst ${_deb_src}/prerm ${_deb_src}/postrm ${_deb_src}/conffiles
+    ${_deb_src}/triggers)
 set(CPACK_DEBIAN_PACKAGE_CONTROL_STRICT_PERMISSION ON)
 include(CPack)

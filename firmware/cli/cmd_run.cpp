@@ -55,6 +55,8 @@ struct RunArgs {
   double record_segment_mb = 0.0;
   double record_max_mb = 0.0;
   bool no_live = false;
+  std::string client_socket;  // PATH
+  bool no_client = false;
   ReplayFlags flags;
 };
 
@@ -63,6 +65,14 @@ nlohmann::json live_json(const firmware::ApplianceReport& r) {
   if (r.live_url.empty()) return nullptr;
   nlohmann::json j = {{"url", r.live_url}};
   for (const auto& [name, value] : r.live) j[name] = value;
+  return j;
+}
+
+// The client API: off (null), or its socket and counters at the end.
+nlohmann::json client_json(const firmware::ApplianceReport& r) {
+  if (r.client_socket.empty()) return nullptr;
+  nlohmann::json j = {{"socket", r.client_socket}};
+  for (const auto& [name, value] : r.client) j[name] = value;
   return j;
 }
 
@@ -120,6 +130,7 @@ nlohmann::json to_json(const firmware::ApplianceReport& r, const firmware::RunOu
       {"threads", threads},
       {"stages", stages},
       {"live", live_json(r)},
+      {"client", client_json(r)},
       {"memory_locked", r.memory_locked},
       {"max_rss_kb", r.max_rss_kb}};
   if (out.room) {
@@ -185,6 +196,15 @@ int run_run_command(const RunArgs& args) {
     firmware::set_live_endpoint(*board.live, args.live, "--live");
   }
   if (args.no_live) board.live.reset();
+  if (!args.client_socket.empty()) {
+    if (!board.client) board.client.emplace();
+    if (args.client_socket.size() > 107) {
+      throw InputError("--client-socket: '" + args.client_socket +
+                       "': a UNIX socket's path is at most 107 bytes");
+    }
+    board.client->socket = args.client_socket;
+  }
+  if (args.no_client) board.client.reset();
   if (args.check) return run_check(args, board);
   firmware::ApplianceOptions options;
   source::ReplayOptions replay;
@@ -396,6 +416,12 @@ void add_run_command(CLI::App& app, std::function<int()>& run) {
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--no-live", args->no_live, "Do not serve live, whatever the board says")
       ->excludes(cmd->get_option("--live"));
+  cmd->add_option("--client-socket", args->client_socket,
+                  "Serve the client API (libwallar-client: pose, planes) on this UNIX socket "
+                  "(default: the board's client:, or off)");
+  cmd->add_flag("--no-client", args->no_client,
+                "Do not serve the client API, whatever the board says")
+      ->excludes(cmd->get_option("--client-socket"));
   add_replay_flags(*cmd, args->flags);
   cmd->callback([args, &run] { run = [args] { return run_run_command(*args); }; });
 }

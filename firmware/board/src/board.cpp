@@ -78,7 +78,7 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
   const YamlNode& root = doc.root();
   if (!root.is_map()) root.fail("must be a map (a board file)");
   root.check_keys({"board", "source", "replay", "cameras", "imu", "display", "tracking", "threads",
-                   "calibration", "input", "live"});
+                   "calibration", "input", "live", "client"});
   BoardConfig b;
   b.file = name;
 
@@ -194,8 +194,8 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
   if (const YamlNode* th = root.find("threads")) {
     th->check_keys({kThreadNames[0], kThreadNames[1], kThreadNames[2], kThreadNames[3],
                     kThreadNames[4], kThreadNames[5], kThreadNames[6], kThreadNames[7],
-                    kThreadNames[8], kThreadNames[9]});
-    static_assert(std::size(kThreadNames) == 10, "threads: check_keys lists every name");
+                    kThreadNames[8], kThreadNames[9], kThreadNames[10]});
+    static_assert(std::size(kThreadNames) == 11, "threads: check_keys lists every name");
     for (const std::string_view thread : kThreadNames) {
       const YamlNode* n = th->find(std::string(thread));
       if (n == nullptr) continue;
@@ -264,6 +264,29 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
     }
     if (const YamlNode* q = l->find("jpeg_quality")) live.jpeg_quality = positive_int(*q, 100);
     b.live = live;
+  }
+
+  if (const YamlNode* c = root.find("client")) {
+    c->check_keys({"socket", "group", "mode"});
+    ClientConfig client;
+    if (const YamlNode* s = c->find("socket")) {
+      client.socket = s->as_string();
+      if (client.socket.empty() || client.socket.size() > 107)
+        s->fail("must be a path of 1..107 bytes (a UNIX socket's limit)");
+      if (client.socket.front() != '/') client.socket = (base_dir / client.socket).string();
+    }
+    if (const YamlNode* g = c->find("group")) client.group = g->as_string();
+    if (const YamlNode* m = c->find("mode")) {
+      // YAML reads 0660 as an integer in octal only by convention: take the digits as octal.
+      const std::string bits = m->as_string();
+      const bool octal = !bits.empty() && bits.size() <= 4 &&
+                         bits.find_first_not_of("01234567") == std::string::npos;
+      if (!octal) m->fail("must be octal permission bits, as 0660");
+      client.mode = static_cast<unsigned>(std::stoul(bits, nullptr, 8));
+      if ((client.mode & 0600U) != 0600U)
+        m->fail("must let the owner read and write (0600 at least)");
+    }
+    b.client = client;
   }
   return b;
 }

@@ -65,9 +65,10 @@ bool Reconstruction::maybe_run(const dsp::MapSnapshot& map,
   ++runs_;
   out_.back() = result.model;
   out_.publish();
-  if (second_out_ != nullptr) {
-    second_out_->back() = result.model;
-    second_out_->publish();
+  for (TripleBuffer<WallModel>* o : more_outs_) {
+    if (o == nullptr) continue;
+    o->back() = result.model;
+    o->publish();
   }
   result_ = std::move(result);
   return true;

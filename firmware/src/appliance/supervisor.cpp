@@ -15,6 +15,7 @@
 #include "wallar/drivers/recording/euroc.hpp"
 #include "wallar/drivers/recording/mcap_recording.hpp"
 #include "wallar/firmware/appliance.hpp"
+#include "wallar/firmware/appliance/client_server.hpp"
 #include "wallar/firmware/appliance/inputs.hpp"
 #include "wallar/firmware/appliance/live_module.hpp"
 #include "wallar/firmware/appliance/live_publisher.hpp"
@@ -88,6 +89,7 @@ ApplianceReport run_over_recording(const recording::EurocRecording& rec, const B
   replay_board.keys.clear();
   replay_board.camera_trigger.reset();
   replay_board.live.reset();  // an offline command serves nothing
+  replay_board.client.reset();
   if (replay_board.name.empty()) replay_board.name = "offline";
   return run_modules(replay_board, options, stop, nullptr, &rec);
 }
@@ -157,6 +159,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   // The live server's own (each triple buffer has one reader).
   TripleBuffer<WallModel> live_walls_channel;
   TripleBuffer<MapPtr> live_map_channel;
+  TripleBuffer<WallModel> client_walls_channel;  // the client API's
 
   // The live server listens before any thread starts (a port in use is an InputError here),
   // and outlives the log thread, which copies each line to it.
@@ -206,6 +209,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
                                 static_cast<std::size_t>(board.tracking.max_map_points),
                                 walls_channel);
   if (live) reconstruction.also_publish_to(&live_walls_channel);
+  if (board.client) reconstruction.also_publish_to(&client_walls_channel);
   std::unique_ptr<TrackingThread> tracker;
   try {
     tracker = std::make_unique<TrackingThread>(rig, tracking, pipeline, tracking_wakeup, pose,
@@ -214,6 +218,15 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
     throw InputError(rig_source + ": calibration: " + e.what());
   }
   report.T_body_rect = tracker->system().tracker().T_body_rect();
+  // The client API's socket, before any thread starts (a path in use is an InputError here).
+  // Its world is the first body pose's, as the run's files.
+  std::unique_ptr<ClientServer> client;
+  if (board.client) {
+    client = std::make_unique<ClientServer>(*board.client, report.T_body_rect, pose,
+                                            client_walls_channel);
+    report.client_socket = client->path();
+    tracker->set_client_pose(&client->publisher(), replay);
+  }
   if (live) tracker->set_live(live.get());
   std::unique_ptr<LiveView> view;
   if (options.view) {
@@ -328,6 +341,14 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
     if (live && live->thread() != nullptr) {
       threads.push_back(row_of(*live->thread(), run_ns, 0, 0, nullptr));
     }
+    if (client && client->thread() != nullptr) {
+      threads.push_back(row_of(*client->thread(), run_ns, client->wakeups(), 0, nullptr));
+      const ClientServerCounters c = client->counters();
+      threads.back().note = "clients " + std::to_string(c.clients) + ", accepted " +
+                            std::to_string(c.accepted) + ", dropped " + std::to_string(c.dropped) +
+                            ", malformed " + std::to_string(c.malformed) + ", refused " +
+                            std::to_string(c.refused);
+    }
     return threads;
   };
   const DurationNs frame_period = tracker->frame_period_ns();
@@ -386,6 +407,18 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
                 });
     log_out(live->describe());
   }
+  // The client API's thread: stopped after the last wall search (below), so apps get the
+  // final model; also when an exception leaves this scope.
+  if (client) {
+    client->start(thread_spec("client", realtime, &board));
+    log_out(client->describe());
+  }
+  struct StopClient {
+    ClientServer* client;
+    ~StopClient() {
+      if (client != nullptr) client->stop(0);
+    }
+  } stop_client{client.get()};
   struct StopLive {
     LivePublisher* live;
     ~StopLive() {
@@ -521,6 +554,11 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
     reconstruction.maybe_run(*final_map, down_of(p), p.epoch, true);
   }
   if (view) report.view = view->stop();
+  if (client) {
+    client->stop();  // the final model goes out first (a short flush)
+    report.client = client->counter_list();
+    if (!client->error().empty()) options.log("client API stopped early: " + client->error());
+  }
   log_thread.stop();  // every thread that posts has stopped: the last lines are out
   report.stages = stage_rows();
   report.mapping_times_ns = tracker->system().mapping_times_ns();

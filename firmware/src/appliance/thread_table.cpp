@@ -26,6 +26,7 @@ constexpr ThreadTableEntry kThreadTable[] = {
     {"supervisor", 75, -1, 0, "health, stop, stats, watchdog (main thread)", false},
     {"log", 0, -1, 256 * 1024, "log records formatted and written", false},
     {"live", 0, -1, 1 * kMiB, "live server: encodes for Foxglove (--live)", false},
+    {"client", 0, -1, 1 * kMiB, "client API: planes and tracking state to apps (client:)", false},
 };
 
 }  // namespace

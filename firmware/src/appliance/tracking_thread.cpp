@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "wallar/firmware/appliance/allocation_count.hpp"
+#include "wallar/firmware/appliance/client_server.hpp"
 #include "wallar/firmware/appliance/live_publisher.hpp"
 #include "wallar/firmware/appliance/source_module.hpp"
 #include "wallar/firmware/imu_attitude.hpp"
@@ -135,6 +136,14 @@ void TrackingThread::on_imu(const ImuSample& s) {
   if (filter_->initialized()) system_.set_gyro_bias(filter_->gyro_bias_rad_s());
   last_imu_t_ns_ = s.t_ns;
   imu_seen_ = true;
+  if (client_pose_ != nullptr) {
+    // The client API's prediction: the bias-corrected rate since the last pose (a store into
+    // shared memory; no system call, no allocation).
+    const Eigen::Vector3d bias = filter_->initialized()
+                                     ? Eigen::Vector3d(filter_->gyro_bias_rad_s())
+                                     : Eigen::Vector3d::Zero();
+    client_pose_->on_imu(s.t_ns, R_body_imu_ * (s.gyro_rad_s - bias));
+  }
   if (imu_lost_) {
     imu_lost_ = false;
     ++degraded_.imu_recovered;
@@ -180,6 +189,9 @@ void TrackingThread::publish_imu_only(TimeNs t_ns) {
   T.linear() = R_world_body_at_loss_ * R_body_imu_ * R_imu0_imu * R_body_imu_.transpose();
   const std::optional<Eigen::Vector3d> down = gravity_in_world(T);
   pose_.store(make_pose_snapshot(t_ns, T, dsp::TrackingState::kTracking, down, epoch_, true));
+  if (client_pose_ != nullptr) {
+    client_pose_->on_pose(t_ns, T, client_wire::Tracking::kTracking, epoch_, sensor_offset_ns_);
+  }
   ++degraded_.imu_only_poses;
   if (view_ != nullptr && !last_frame_.left.image.empty()) {
     ViewPost post;
@@ -232,6 +244,15 @@ void TrackingThread::on_frame(const StereoFrame& f) {
   }
   const std::optional<Eigen::Vector3d> down = gravity_in_world(T_world_body);
   pose_.store(make_pose_snapshot(f.t_ns, T_world_body, r.state, down, epoch_, false));
+  if (client_pose_ != nullptr) {
+    // A replay's clock is the recording's: the frame's delivery (CLOCK_MONOTONIC) maps it.
+    if (replay_clock_ && f.left.publish_t_ns > 0) sensor_offset_ns_ = f.t_ns - f.left.publish_t_ns;
+    const auto state = r.state == dsp::TrackingState::kTracking ? client_wire::Tracking::kTracking
+                       : r.state == dsp::TrackingState::kLost
+                           ? client_wire::Tracking::kLost
+                           : client_wire::Tracking::kInitialising;
+    client_pose_->on_pose(f.t_ns, T_world_body, state, epoch_, sensor_offset_ns_);
+  }
   if (view_ != nullptr) {
     ViewPost post;
     post.frame = f;

@@ -140,6 +140,10 @@ struct ApplianceReport {
   /// The live server (board live:, `wallar run --live`): its URL (empty: off) and counters.
   std::string live_url;
   std::vector<std::pair<const char*, std::uint64_t>> live;
+  /// The client API (board client:, `wallar run --client-socket`): its socket (empty: off)
+  /// and counters (ClientServer::counter_list()).
+  std::string client_socket;
+  std::vector<std::pair<const char*, std::uint64_t>> client;
   /// The live devices' driver counters at the end (SourceModule::device_counters()).
   std::vector<std::pair<std::string, std::string>> devices;
   std::vector<std::string> events;  //!< transitions and warnings, in order

@@ -93,7 +93,7 @@ struct ThreadPlacementConfig {
 /// The names threads.NAME may take (the thread table's).
 inline constexpr const char* kThreadNames[] = {"imu",     "capture",     "replay", "tracking",
                                                "mapping", "reconstruct", "render", "supervisor",
-                                               "log",     "live"};
+                                               "log",     "live",        "client"};
 
 /// live: the live server (Foxglove's WebSocket protocol, firmware/appliance/live_publisher.hpp).
 /// Off unless the board has the section or `wallar run --live` asks.
@@ -104,6 +104,15 @@ struct LiveConfig {
   std::optional<std::filesystem::path> token_file;
   double image_rate_hz = 5.0;  //!< JPEG images per second per camera (0: none)
   int jpeg_quality = 70;       //!< 1..100
+};
+
+/// client: the client API server (firmware/appliance/client_server.hpp), a UNIX stream socket
+/// for libwallar-client. Off unless the board has the section or `wallar run --client-socket`
+/// asks.
+struct ClientConfig {
+  std::string socket = "/run/wallar/client.sock";  //!< its path (at most 107 bytes)
+  std::string group = "wallar";  //!< the socket's group, when it exists (else the process's)
+  unsigned mode = 0660;          //!< the socket's permission bits
 };
 
 struct ReplayConfig {
@@ -134,6 +143,8 @@ struct BoardConfig {
   /// `wallar run --keys` takes it (/dev/input/..., or name:TEXT); empty: none. --keys wins.
   std::string keys;
   std::optional<LiveConfig> live;  //!< live: (the live server); `wallar run --live` sets it
+  /// client: (the client API socket); `wallar run --client-socket` sets it
+  std::optional<ClientConfig> client;
 };
 
 /// "[ADDRESS:]PORT" (`wallar run --live`) into `live`'s address and port; throws InputError

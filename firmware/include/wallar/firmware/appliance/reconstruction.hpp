@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 
 #include "wallar/core/heartbeat.hpp"
 #include "wallar/core/seqlock.hpp"
@@ -61,8 +62,18 @@ class Reconstruction {
  public:
   Reconstruction(const ReconstructionOptions& options, std::size_t max_points,
                  TripleBuffer<WallModel>& out);
-  /// Each model is also published on `second` (the live server's channel); before any run.
-  void also_publish_to(TripleBuffer<WallModel>* second) { second_out_ = second; }
+  /// Each model is also published on `more` (the live server's, the client API's channels: up
+  /// to kMaxMoreOuts, each with its own reader); before any run.
+  void also_publish_to(TripleBuffer<WallModel>* more) {
+    for (TripleBuffer<WallModel>*& o : more_outs_) {
+      if (o == nullptr) {
+        o = more;
+        return;
+      }
+    }
+    throw std::logic_error("Reconstruction: more than kMaxMoreOuts outputs");
+  }
+  static constexpr std::size_t kMaxMoreOuts = 2;
 
   /// Runs when the map grew enough since the last run (or `force`: whenever the map or the
   /// gravity mode changed); returns whether it ran. A new `epoch` (a reset) forgets the last
@@ -80,7 +91,7 @@ class Reconstruction {
   ReconstructionOptions options_;
   dsp::RoomEstimator estimator_;
   TripleBuffer<WallModel>& out_;
-  TripleBuffer<WallModel>* second_out_ = nullptr;
+  TripleBuffer<WallModel>* more_outs_[kMaxMoreOuts] = {};
   std::optional<WallModel> previous_;
   std::optional<dsp::RoomResult> result_;
   std::size_t last_points_ = 0;

@@ -43,6 +43,7 @@
 namespace wallar::firmware {
 
 class LivePublisher;
+class SharedPosePublisher;
 
 struct TrackingThreadOptions {
   TrackingOptions tracking;  //!< tracker sizes, gyro prior, mapping thread or lock step
@@ -73,6 +74,11 @@ class TrackingThread {
   void set_view(LiveView* view) { view_ = view; }
   /// The live server to offer frames to (null: none); before the thread starts.
   void set_live(LivePublisher* live) { live_ = live; }
+  /// The client API's shared pose (each pose, each IMU sample after it); before run().
+  void set_client_pose(SharedPosePublisher* publisher, bool replay_clock) {
+    client_pose_ = publisher;
+    replay_clock_ = replay_clock;
+  }
   /// After the thread stopped: stops mapping (global adjustment) and returns the final map.
   MapPtr finish() { return system_.finish(); }
 
@@ -110,6 +116,9 @@ class TrackingThread {
   Seqlock<PoseSnapshot>& pose_;
   LiveView* view_;
   LivePublisher* live_ = nullptr;
+  SharedPosePublisher* client_pose_ = nullptr;
+  bool replay_clock_ = false;        //!< sensor time is a recording's, not CLOCK_MONOTONIC
+  DurationNs sensor_offset_ns_ = 0;  //!< sensor clock - CLOCK_MONOTONIC (replay)
   Reconstruction* lockstep_reconstruction_;
   TrackingAndMapping system_;
   std::unique_ptr<dsp::AttitudeFilter> filter_;

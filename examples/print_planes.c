@@ -1,0 +1,201 @@
+/* SPDX-License-Identifier: Apache-2.0 */
+/**
+ * @file print_planes.c
+ * @brief A minimal libwallar-client app: prints the head pose predicted for its own "display"
+ * times (now + --ahead-ms, at --rate Hz) and the room's planes whenever they change, until the
+ * firmware stops (or --duration passes).
+ *
+ *   print_planes --socket /run/wallar/client.sock [--rate 30] [--ahead-ms 16] [--wait 10]
+ *
+ * Output lines: "pose t_ns=... t_pose_ns=... p=x,y,z q=x,y,z,w flags=F tracking=T" (t_ns the
+ * display time asked for, t_pose_ns the pose it was predicted from), "event ...", and per
+ * change a snapshot: "snapshot model=V planes=N" then N lines "plane id=... label=...
+ * orientation=... changes=... extent=W,H world=x,y,z;x,y,z;..." (the polygon in the world).
+ *
+ * Threading: one thread (the C API's contract for everything but locate()).
+ */
+#define _POSIX_C_SOURCE 200809L /* clock_gettime, nanosleep under -std=c11 */
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "wallar_client.h"
+
+static const char* label_name(int32_t l) {
+  switch (l) {
+    case WALLAR_LABEL_FLOOR:
+      return "floor";
+    case WALLAR_LABEL_WALL:
+      return "wall";
+    case WALLAR_LABEL_CEILING:
+      return "ceiling";
+    default:
+      return "unknown";
+  }
+}
+
+static const char* orientation_name(int32_t o) {
+  switch (o) {
+    case WALLAR_ORIENTATION_HORIZONTAL_UPWARD:
+      return "horizontal-upward";
+    case WALLAR_ORIENTATION_HORIZONTAL_DOWNWARD:
+      return "horizontal-downward";
+    case WALLAR_ORIENTATION_VERTICAL:
+      return "vertical";
+    default:
+      return "arbitrary";
+  }
+}
+
+static int64_t monotonic_ns(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
+}
+
+/* v' = q v q* for a unit quaternion (x, y, z, w). */
+static void rotate(const double q[4], const double v[3], double out[3]) {
+  const double x = q[0], y = q[1], z = q[2], w = q[3];
+  const double tx = 2 * (y * v[2] - z * v[1]), ty = 2 * (z * v[0] - x * v[2]),
+               tz = 2 * (x * v[1] - y * v[0]);
+  out[0] = v[0] + w * tx + (y * tz - z * ty);
+  out[1] = v[1] + w * ty + (z * tx - x * tz);
+  out[2] = v[2] + w * tz + (x * ty - y * tx);
+}
+
+static void print_snapshot(wallar_client* c, const char* what) {
+  wallar_planes* planes = NULL;
+  if (wallar_client_begin_planes(c, &planes) != 0) return;
+  const size_t n = wallar_planes_count(planes);
+  printf("%s model=%llu planes=%zu\n", what,
+         (unsigned long long)wallar_planes_model_version(planes), n);
+  for (size_t i = 0; i < n; ++i) {
+    wallar_plane p;
+    if (wallar_planes_get(planes, i, &p) != 0) continue;
+    double* xy = calloc(2 * (size_t)p.vertex_count + 2, sizeof(double));
+    if (xy == NULL) break;
+    wallar_planes_polygon(planes, i, xy, p.vertex_count);
+    printf("plane id=%u label=%s orientation=%s changes=%llu extent=%.4f,%.4f world=", p.id,
+           label_name(p.label), orientation_name(p.orientation), (unsigned long long)p.change_count,
+           p.extent_m[0], p.extent_m[1]);
+    for (uint32_t k = 0; k < p.vertex_count; ++k) {
+      const double local[3] = {xy[2 * k], xy[2 * k + 1], 0.0};
+      double w[3];
+      rotate(p.q_world_plane_xyzw, local, w);
+      printf("%s%.6f,%.6f,%.6f", k ? ";" : "", w[0] + p.p_world_plane_m[0],
+             w[1] + p.p_world_plane_m[1], w[2] + p.p_world_plane_m[2]);
+    }
+    printf("\n");
+    free(xy);
+  }
+  wallar_planes_end(planes);
+  fflush(stdout);
+}
+
+int main(int argc, char** argv) {
+  const char* socket_path = "/run/wallar/client.sock";
+  double rate_hz = 30.0, ahead_ms = 16.0, wait_s = 10.0, duration_s = 0.0;
+  for (int i = 1; i < argc; ++i) {
+    const char* a = argv[i];
+    const char* v = i + 1 < argc ? argv[i + 1] : NULL;
+    if (v != NULL && strcmp(a, "--socket") == 0) {
+      socket_path = v;
+    } else if (v != NULL && strcmp(a, "--rate") == 0) {
+      rate_hz = atof(v);
+    } else if (v != NULL && strcmp(a, "--ahead-ms") == 0) {
+      ahead_ms = atof(v);
+    } else if (v != NULL && strcmp(a, "--wait") == 0) {
+      wait_s = atof(v);
+    } else if (v != NULL && strcmp(a, "--duration") == 0) {
+      duration_s = atof(v);
+    } else {
+      fprintf(stderr,
+              "usage: print_planes [--socket PATH] [--rate HZ] [--ahead-ms MS] [--wait S] "
+              "[--duration S]\n");
+      return 2;
+    }
+    ++i;
+  }
+  if (!(rate_hz > 0.0 && rate_hz <= 1000.0)) {
+    fprintf(stderr, "print_planes: error: --rate must be in (0, 1000] Hz\n");
+    return 2;
+  }
+  /* The firmware may still be starting: retry while the socket is not there yet. */
+  wallar_client* c = NULL;
+  char error[512] = "";
+  const int64_t give_up_ns = monotonic_ns() + (int64_t)(wait_s * 1e9);
+  for (;;) {
+    if (wallar_client_connect(socket_path, "print_planes", &c, error, sizeof error) == 0) break;
+    if (strstr(error, "refused:") != NULL || monotonic_ns() > give_up_ns) {
+      fprintf(stderr, "print_planes: error: %s\n", error);
+      return 1;
+    }
+    struct timespec ts = {0, 50000000};
+    nanosleep(&ts, NULL);
+  }
+  printf("connected %s\n", socket_path);
+  fflush(stdout);
+  const int64_t period_ns = (int64_t)(1e9 / rate_hz);
+  const int64_t end_ns = duration_s > 0 ? monotonic_ns() + (int64_t)(duration_s * 1e9) : 0;
+  int64_t next_ns = monotonic_ns();
+  for (;;) {
+    const int64_t now = monotonic_ns();
+    if (end_ns != 0 && now >= end_ns) break;
+    if (now >= next_ns) {
+      /* A display frame: the pose at its (predicted) display time, in the sensors' clock. */
+      wallar_pose pose;
+      const int64_t t = wallar_client_now_ns(c) + (int64_t)(ahead_ms * 1e6);
+      if (wallar_client_locate(c, t, &pose) == 0) {
+        printf(
+            "pose t_ns=%lld t_pose_ns=%lld p=%.5f,%.5f,%.5f q=%.6f,%.6f,%.6f,%.6f flags=%u "
+            "tracking=%d\n",
+            (long long)pose.t_ns, (long long)pose.t_pose_ns, pose.p_world_body_m[0],
+            pose.p_world_body_m[1], pose.p_world_body_m[2], pose.q_world_body_xyzw[0],
+            pose.q_world_body_xyzw[1], pose.q_world_body_xyzw[2], pose.q_world_body_xyzw[3],
+            pose.flags, pose.tracking);
+      }
+      next_ns += period_ns;
+      if (next_ns < now) next_ns = now + period_ns;
+    }
+    int timeout_ms = (int)((next_ns - monotonic_ns()) / 1000000);
+    if (timeout_ms < 0) timeout_ms = 0;
+    wallar_event events[64];
+    const int n = wallar_client_poll_events(c, timeout_ms, events, 64);
+    if (n < 0) break;
+    int planes_changed = 0, closed = 0;
+    for (int i = 0; i < n; ++i) {
+      const wallar_event* e = &events[i];
+      switch (e->type) {
+        case WALLAR_EVENT_PLANE_ADDED:
+          printf("event plane-added id=%u model=%llu\n", e->plane_id,
+                 (unsigned long long)e->model_version);
+          planes_changed = 1;
+          break;
+        case WALLAR_EVENT_PLANE_UPDATED:
+          printf("event plane-updated id=%u model=%llu\n", e->plane_id,
+                 (unsigned long long)e->model_version);
+          planes_changed = 1;
+          break;
+        case WALLAR_EVENT_PLANE_REMOVED:
+          printf("event plane-removed id=%u subsumed-by=%u\n", e->plane_id, e->subsumed_by);
+          planes_changed = 1;
+          break;
+        case WALLAR_EVENT_TRACKING_CHANGED:
+          printf("event tracking=%d t_ns=%lld\n", e->tracking, (long long)e->t_ns);
+          break;
+        case WALLAR_EVENT_DISCONNECTED:
+          printf("event disconnected\n");
+          closed = 1;
+          break;
+      }
+    }
+    if (planes_changed) print_snapshot(c, "snapshot");
+    if (closed) break;
+  }
+  print_snapshot(c, "final");
+  wallar_client_disconnect(c);
+  return 0;
+}
