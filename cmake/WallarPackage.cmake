@@ -64,7 +64,7 @@ string(CONCAT CPACK_DEBIAN_PACKAGE_DESCRIPTION
 # Library dependencies from the binary's ELF (dpkg-shlibdeps, which finds arm64 libraries of the
 # multiarch installation too); the maintainer scripts' tools by hand.
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
-# libwallar-client.so.0 (the client API's library, client/): its shlibs file and the ldconfig
+# libwallar-client.so.0 (the client API's library, firmware/client/): its shlibs file and the ldconfig
 # trigger come from CPack.
 set(CPACK_DEBIAN_PACKAGE_GENERATE_SHLIBS ON)
 set(CPACK_DEBIAN_PACKAGE_GENERATE_SHLIBS_POLICY ">=")

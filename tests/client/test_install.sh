@@ -13,7 +13,7 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 fail() { echo "FAIL [client_install]: $*" >&2; exit 1; }
 command -v pkg-config >/dev/null || fail "no pkg-config"
-cmake -DCMAKE_INSTALL_PREFIX="$tmp/prefix" -P "$build/client/cmake_install.cmake" >/dev/null ||
+cmake -DCMAKE_INSTALL_PREFIX="$tmp/prefix" -P "$build/firmware/client/cmake_install.cmake" >/dev/null ||
   fail "install rules"
 pc=$(find "$tmp/prefix" -name wallar-client.pc)
 [ -n "$pc" ] || fail "no wallar-client.pc installed"

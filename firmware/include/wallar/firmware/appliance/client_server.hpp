@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file client_server.hpp
 /// @brief The client API server (`wallar run --client-socket PATH`, the board's `client:`):
-/// applications (libwallar-client, client/) get the head pose from a shared-memory seqlock and
-/// the planes with OpenXR's semantics over a UNIX stream socket. The protocol is
+/// applications (libwallar-client, firmware/client/) get the head pose from a shared-memory
+/// seqlock and the planes with OpenXR's semantics over a UNIX stream socket. The protocol is
 /// client/include/wallar/client/wire.hpp; docs/architecture.md ("Client API") describes it.
 ///
 /// Pieces:
