@@ -98,7 +98,8 @@ static void print_snapshot(wallar_client* c, const char* what) {
 int main(int argc, char** argv) {
   const char* socket_path = "/run/wallar/client.sock";
   double rate_hz = 30.0, ahead_ms = 16.0, wait_s = 10.0, duration_s = 0.0;
-  for (int i = 1; i < argc; ++i) {
+  /* Options come in pairs: NAME VALUE. */
+  for (int i = 1; i < argc; i += 2) {
     const char* a = argv[i];
     const char* v = i + 1 < argc ? argv[i + 1] : NULL;
     if (v != NULL && strcmp(a, "--socket") == 0) {
@@ -117,7 +118,6 @@ int main(int argc, char** argv) {
               "[--duration S]\n");
       return 2;
     }
-    ++i;
   }
   if (!(rate_hz > 0.0 && rate_hz <= 1000.0)) {
     fprintf(stderr, "print_planes: error: --rate must be in (0, 1000] Hz\n");

@@ -176,9 +176,7 @@ class ClientServer {
   // The client thread's own.
   std::vector<std::unique_ptr<Client>> clients_;
   ClientPlanes planes_;
-  std::uint64_t walls_version_seen_ = 0;
   std::uint8_t tracking_sent_ = 0xff;
-  std::uint32_t epoch_seen_ = 0;
   std::vector<std::uint8_t> msg_;
 
   std::atomic<std::uint64_t> accepted_{0}, refused_{0}, malformed_{0}, timeouts_{0}, dropped_{0},
