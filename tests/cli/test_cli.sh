@@ -303,6 +303,7 @@ PY
   # token is refused before the upgrade, one with it is served.
   run run --board "$src/board/sim.yaml" --live 0.0.0.0:0 --duration 1 --no-view --out "$tmp/o0"
   expect_rc 0; expect_err "without a token: anyone on that network can watch"
+  expect_err "live server on ws://$(hostname):"  # the host's name, not 0.0.0.0
   printf 's3cret-1\n' >"$tmp/live.token"
   sed 's|recording: \.\./|recording: '"$src"'/|' "$src/board/sim.yaml" >"$tmp/token.yaml"
   printf 'live:\n  port: 0\n  token_file: live.token\n' >>"$tmp/token.yaml"

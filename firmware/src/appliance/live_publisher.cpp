@@ -3,6 +3,8 @@
 /// @brief The live module: the appliance's outputs on Foxglove's WebSocket protocol.
 #include "wallar/firmware/appliance/live_publisher.hpp"
 
+#include <unistd.h>
+
 #include <cmath>
 #include <ctime>
 #include <fstream>
@@ -99,7 +101,14 @@ LivePublisher::LivePublisher(const LiveConfig& config, const RigCalibration& rig
 LivePublisher::~LivePublisher() { stop(); }
 
 std::string LivePublisher::url() const {
-  return "ws://" + config_.address + ":" + std::to_string(server_.port()) + "/";
+  // Bound to every address: 0.0.0.0 is no address a laptop can connect to; the host's name is
+  // (on the headset's network, with mDNS or DNS).
+  std::string host = config_.address;
+  if (host == "0.0.0.0") {
+    char name[256] = {};
+    if (gethostname(name, sizeof name - 1) == 0 && name[0] != '\0') host = name;
+  }
+  return "ws://" + host + ":" + std::to_string(server_.port()) + "/";
 }
 
 void LivePublisher::start(ThreadSpec spec, StatsSource stats) {
