@@ -137,6 +137,12 @@ int main(int argc, char** argv) {
     nanosleep(&ts, NULL);
   }
   printf("connected %s\n", socket_path);
+  /* Where to render from: the headset's eye (its rectified left camera) in the body frame. */
+  double q_view[4], p_view[3];
+  if (wallar_client_view(c, q_view, p_view) == 0) {
+    printf("view in body: q_xyzw %.6f %.6f %.6f %.6f p %.6f %.6f %.6f m\n", q_view[0], q_view[1],
+           q_view[2], q_view[3], p_view[0], p_view[1], p_view[2]);
+  }
   fflush(stdout);
   const int64_t period_ns = (int64_t)(1e9 / rate_hz);
   const int64_t end_ns = duration_s > 0 ? monotonic_ns() + (int64_t)(duration_s * 1e9) : 0;

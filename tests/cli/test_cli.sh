@@ -425,6 +425,13 @@ for s in walls['surfaces']:
 assert len(planes) == len(walls['surfaces']), (sorted(planes), [s['id'] for s in walls['surfaces']])
 c = run['client']
 assert c['accepted'] == 1 and c['malformed'] == 0 and c['plane_models'] >= 1, c
+# The view apps render from: the rectified left camera, at cam0's place in the body (EuRoC's
+# T_BS translation; rectification only turns it), a unit quaternion.
+view = [float(x) for x in next(l for l in lines if l.startswith('view in body:')).split()[4:]
+        if x not in ('p', 'm')]
+q, pos = view[:4], view[4:7]
+assert abs(sum(x * x for x in q) - 1) < 1e-5, view
+assert max(abs(a - b) for a, b in zip(pos, (-0.0216401, -0.0646770, 0.0098107))) < 1e-5, view
 print('planes', {i: p[0] for i, p in planes.items()}, 'client', c)
 PY
   # Run 2: the same, with hostile and frozen clients beside print_planes.

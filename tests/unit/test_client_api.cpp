@@ -120,6 +120,14 @@ std::vector<wallar_event> events_until(wallar::Client& c,
   return all;
 }
 
+// The view the fixture's server gives apps: a camera 2 cm ahead of and turned against the body.
+SE3d fixture_view() {
+  SE3d T = SE3d::Identity();
+  T.linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(0.02, -0.035, 0.01);
+  return T;
+}
+
 struct Fixture {
   Seqlock<PoseSnapshot> pose;
   TripleBuffer<WallModel> walls;
@@ -128,7 +136,8 @@ struct Fixture {
     ClientConfig config;
     config.socket = path;
     config.group = "";  // the owner only
-    server = std::make_unique<ClientServer>(config, SE3d::Identity(), pose, walls, o);
+    server =
+        std::make_unique<ClientServer>(config, SE3d::Identity(), fixture_view(), pose, walls, o);
     server->start(ThreadSpec{"client", 0, -1, 0});
   }
   void publish(const WallModel& m) {
@@ -520,6 +529,15 @@ TEST(ClientServer, LocatePredictsFromThePoseTheGyroAndTheVelocity) {
   wallar::Client client(path, "pose");
   wallar_pose p = client.locate(0);
   EXPECT_EQ(p.flags, 0u);  // nothing before the first pose
+  // The view apps render from: the server's T_body_view, before any pose and after them.
+  const auto expect_view = [&] {
+    const std::array<double, 7> v = client.view();
+    const Eigen::Quaterniond q(v[3], v[0], v[1], v[2]);
+    EXPECT_LT(Eigen::AngleAxisd(q.toRotationMatrix().transpose() * fixture_view().linear()).angle(),
+              1e-12);
+    EXPECT_LT((Eigen::Vector3d(v[4], v[5], v[6]) - fixture_view().translation()).norm(), 1e-15);
+  };
+  expect_view();
   SharedPosePublisher& w = f.server->publisher();
   // A body moving at v = (1, 0, 0.5) m/s and turning at 1 rad/s about its z.
   const Eigen::Vector3d v(1.0, 0.0, 0.5), omega(0, 0, 1.0);
@@ -568,6 +586,7 @@ TEST(ClientServer, LocatePredictsFromThePoseTheGyroAndTheVelocity) {
   for (int k = 0; k < 20000; ++k) w.on_imu(t0 + 40 * kNsPerMs + k * kNsPerMs, omega);
   stop.store(true);
   reader.join();
+  expect_view();
 }
 
 TEST(ClientServer, ASecondServerOnTheSameSocketIsRefusedAndAStaleOneReplaced) {
@@ -579,7 +598,7 @@ TEST(ClientServer, ASecondServerOnTheSameSocketIsRefusedAndAStaleOneReplaced) {
     Seqlock<PoseSnapshot> pose;
     TripleBuffer<WallModel> walls;
     try {
-      ClientServer second(config, SE3d::Identity(), pose, walls);
+      ClientServer second(config, SE3d::Identity(), SE3d::Identity(), pose, walls);
       FAIL() << "a second server on a live socket";
     } catch (const InputError& e) {
       EXPECT_NE(std::string(e.what()).find("another server listens on it"), std::string::npos)
@@ -607,7 +626,7 @@ TEST(ClientServer, ASecondServerOnTheSameSocketIsRefusedAndAStaleOneReplaced) {
   config.socket = file;
   Seqlock<PoseSnapshot> pose;
   TripleBuffer<WallModel> walls;
-  EXPECT_THROW(ClientServer(config, SE3d::Identity(), pose, walls), InputError);
+  EXPECT_THROW(ClientServer(config, SE3d::Identity(), SE3d::Identity(), pose, walls), InputError);
   fs::remove(file);
 }
 

@@ -131,6 +131,14 @@ WALLAR_CLIENT_API int64_t wallar_client_now_ns(const wallar_client* client);
 WALLAR_CLIENT_API int wallar_client_locate(const wallar_client* client, int64_t t_ns,
                                            wallar_pose* out);
 /**
+ * The view an app renders from, in the body frame (T_body_view): the headset's rectified left
+ * camera, the video see-through eye (x right, y down, z forward, as OpenCV's cameras). The
+ * eye's pose at a time is the located body pose times this. Constant for a run. Returns 0, or
+ * -1 if the shared memory never gave a consistent read.
+ */
+WALLAR_CLIENT_API int wallar_client_view(const wallar_client* client, double q_body_view_xyzw[4],
+                                         double p_body_view_m[3]);
+/**
  * Reads what arrived (waiting up to `timeout_ms` when nothing has: 0 never waits, -1 waits
  * for ever) and returns up to `max` events (>= 0). After the firmware closed the connection,
  * one WALLAR_EVENT_DISCONNECTED and then -1.

@@ -77,6 +77,13 @@ class Client {
       throw std::runtime_error("wallar: the shared pose gave no consistent read");
     return p;
   }
+  /// The view apps render from in the body frame: {q_body_view_xyzw[4], p_body_view_m[3]}.
+  [[nodiscard]] std::array<double, 7> view() const {
+    std::array<double, 7> v{};
+    if (wallar_client_view(c_, v.data(), v.data() + 4) != 0)
+      throw std::runtime_error("wallar: the shared pose gave no consistent read");
+    return v;
+  }
   /// Events that arrived, waiting up to timeout_ms for the first; empty with `closed` set
   /// once the firmware is gone (after one WALLAR_EVENT_DISCONNECTED).
   std::vector<wallar_event> poll(int timeout_ms, bool* closed = nullptr) {

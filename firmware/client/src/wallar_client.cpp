@@ -308,6 +308,18 @@ int64_t wallar_client_now_ns(const wallar_client* client) {
   return monotonic_ns() + p.sensor_minus_monotonic_ns;
 }
 
+int wallar_client_view(const wallar_client* client, double q_body_view_xyzw[4],
+                       double p_body_view_m[3]) {
+  cw::PosePayload p;
+  if (client == nullptr || q_body_view_xyzw == nullptr || p_body_view_m == nullptr ||
+      !read_pose(client->shm, p)) {
+    return -1;
+  }
+  for (int i = 0; i < 4; ++i) q_body_view_xyzw[i] = p.q_body_view_xyzw[i];
+  for (int i = 0; i < 3; ++i) p_body_view_m[i] = p.p_body_view_m[i];
+  return 0;
+}
+
 int wallar_client_locate(const wallar_client* client, int64_t t_ns, wallar_pose* out) {
   if (client == nullptr || out == nullptr) return -1;
   cw::PosePayload p;

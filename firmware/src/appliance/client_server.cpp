@@ -84,8 +84,15 @@ bool same_geometry(const cw::PlaneRecord& a, const cw::PlaneRecord& b) {
 
 // ---- shared pose ---------------------------------------------------------------------------
 
-SharedPosePublisher::SharedPosePublisher(cw::SharedPoseBlock* block, const SE3d& T_out_world)
-    : writer_(block), T_out_world_(T_out_world) {}
+SharedPosePublisher::SharedPosePublisher(cw::SharedPoseBlock* block, const SE3d& T_out_world,
+                                         const SE3d& T_body_view)
+    : writer_(block), T_out_world_(T_out_world) {
+  const Eigen::Quaterniond q(T_body_view.linear());
+  const double qv[4] = {q.x(), q.y(), q.z(), q.w()};
+  for (int i = 0; i < 4; ++i) value_.q_body_view_xyzw[i] = qv[i];
+  for (int i = 0; i < 3; ++i) value_.p_body_view_m[i] = T_body_view.translation()[i];
+  if (writer_.attached()) writer_.store(value_);
+}
 
 void SharedPosePublisher::on_pose(TimeNs t_ns, const SE3d& T_world_body, cw::Tracking state,
                                   std::uint32_t epoch, DurationNs sensor_minus_monotonic_ns) {
@@ -314,9 +321,14 @@ struct ClientServer::Client {
 };
 
 ClientServer::ClientServer(const ClientConfig& config, const SE3d& T_out_world,
-                           const Seqlock<PoseSnapshot>& pose, TripleBuffer<WallModel>& walls,
-                           ClientServerOptions options)
-    : config_(config), options_(options), T_out_world_(T_out_world), pose_(pose), walls_(walls) {
+                           const SE3d& T_body_view, const Seqlock<PoseSnapshot>& pose,
+                           TripleBuffer<WallModel>& walls, ClientServerOptions options)
+    : config_(config),
+      options_(options),
+      T_out_world_(T_out_world),
+      T_body_view_(T_body_view),
+      pose_(pose),
+      walls_(walls) {
   const std::string& path = config_.socket;
   const std::string what = "client.socket " + path + ": ";
   sockaddr_un addr{};
@@ -387,7 +399,8 @@ ClientServer::ClientServer(const ClientConfig& config, const SE3d& T_out_world,
 #endif
     (void)::fcntl(memfd_, F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW);
   (void)::fcntl(memfd_, F_ADD_SEALS, F_SEAL_SEAL);
-  publisher_ = SharedPosePublisher(static_cast<cw::SharedPoseBlock*>(shm_), T_out_world_);
+  publisher_ =
+      SharedPosePublisher(static_cast<cw::SharedPoseBlock*>(shm_), T_out_world_, T_body_view_);
   wake_fd_ = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
   if (wake_fd_ < 0) throw std::runtime_error("client API: eventfd: " + errno_text());
   clients_.reserve(static_cast<std::size_t>(options_.max_clients));

@@ -222,8 +222,9 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   // Its world is the first body pose's, as the run's files.
   std::unique_ptr<ClientServer> client;
   if (board.client) {
-    client = std::make_unique<ClientServer>(*board.client, report.T_body_rect, pose,
-                                            client_walls_channel);
+    // The view apps render from is the rectified left camera, the headset view's.
+    client = std::make_unique<ClientServer>(*board.client, report.T_body_rect, report.T_body_rect,
+                                            pose, client_walls_channel);
     report.client_socket = client->path();
     tracker->set_client_pose(&client->publisher(), replay);
   }

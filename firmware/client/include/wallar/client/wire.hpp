@@ -306,11 +306,15 @@ struct PosePayload {
   std::uint8_t has_pose = 0;
   std::uint8_t has_imu = 0;
   std::uint8_t pad = 0;
+  /// The view an app renders from: the headset's rectified left camera (the video see-through
+  /// eye) in the body frame, T_body_view (constant for a run; x right, y down, z forward).
+  double q_body_view_xyzw[4] = {0, 0, 0, 1};
+  double p_body_view_m[3] = {0, 0, 0};
 };
 static_assert(std::is_trivially_copyable_v<PosePayload>);
 
 inline constexpr std::uint64_t kShmMagic = 0x45534f5052414c57ull;  // "WALRPOSE" little-endian
-inline constexpr std::uint64_t kShmLayout = 1;
+inline constexpr std::uint64_t kShmLayout = 2;  //!< 2: PosePayload carries T_body_view
 inline constexpr std::size_t kPayloadWords = (sizeof(PosePayload) + 7) / 8;
 inline constexpr std::size_t kCacheLine = 64;
 

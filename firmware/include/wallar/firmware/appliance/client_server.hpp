@@ -45,7 +45,9 @@ namespace wallar::firmware {
 class SharedPosePublisher {
  public:
   SharedPosePublisher() = default;
-  SharedPosePublisher(client_wire::SharedPoseBlock* block, const SE3d& T_out_world);
+  /// T_body_view: the view apps render from (the rectified left camera in the body frame).
+  SharedPosePublisher(client_wire::SharedPoseBlock* block, const SE3d& T_out_world,
+                      const SE3d& T_body_view);
 
   /// A tracked (or held) pose: resets the gyro integration to it. `sensor_minus_monotonic_ns`
   /// maps the sensors' clock to CLOCK_MONOTONIC (0 when unknown).
@@ -122,8 +124,9 @@ class ClientServer {
  public:
   /// Creates the socket (mode and group from `config`; a stale socket file is replaced, a live
   /// one or another file at the path is an InputError) and the memfd, before any module
-  /// thread starts. T_out_world: the tracker's world into the API's (the first body pose).
-  ClientServer(const ClientConfig& config, const SE3d& T_out_world,
+  /// thread starts. T_out_world: the tracker's world into the API's (the first body pose);
+  /// T_body_view: the view apps render from (the rectified left camera in the body frame).
+  ClientServer(const ClientConfig& config, const SE3d& T_out_world, const SE3d& T_body_view,
                const Seqlock<PoseSnapshot>& pose, TripleBuffer<WallModel>& walls,
                ClientServerOptions options = {});
   ~ClientServer();  // stop()s, unlinks the socket
@@ -162,6 +165,7 @@ class ClientServer {
   ClientConfig config_;
   ClientServerOptions options_;
   SE3d T_out_world_;
+  SE3d T_body_view_;
   const Seqlock<PoseSnapshot>& pose_;
   TripleBuffer<WallModel>& walls_;
   int listen_fd_ = -1;
