@@ -75,13 +75,14 @@ namespace {
 std::optional<dsp::StaticImuEstimate> still_around(const recording::EurocRecording& rec,
                                                    TimeNs t0_ns) {
   if (rec.imu.empty()) return std::nullopt;
-  auto still = dsp::estimate_static_imu(rec.imu, t0_ns - kNsPerS / 2, t0_ns + kNsPerS / 2);
-  if (still && rec.imu_calib.has_accel_bias()) {
-    still->mean_accel_m_s2 -= rec.imu_calib.accel_bias_m_s2;
-    still->q_world_body = Eigen::Quaterniond::FromTwoVectors(still->mean_accel_m_s2.normalized(),
-                                                             Eigen::Vector3d::UnitZ());
-  }
-  return still;
+  return dsp::estimate_static_imu(rec.imu, t0_ns - kNsPerS / 2, t0_ns + kNsPerS / 2, 20,
+                                  rec.imu_calib.accel_bias_m_s2);
+}
+
+SE3d alignment_of(const dsp::StaticImuEstimate& still) {
+  SE3d R_align = SE3d::Identity();
+  R_align.linear() = still.q_world_body.toRotationMatrix();
+  return R_align;
 }
 
 }  // namespace
@@ -89,9 +90,7 @@ std::optional<dsp::StaticImuEstimate> still_around(const recording::EurocRecordi
 std::optional<SE3d> gravity_alignment(const recording::EurocRecording& rec, TimeNs t0_ns) {
   const auto still = still_around(rec, t0_ns);
   if (!still) return std::nullopt;
-  SE3d R_align = SE3d::Identity();
-  R_align.linear() = still->q_world_body.toRotationMatrix();
-  return R_align;
+  return alignment_of(*still);
 }
 
 void check_evaluation_inputs(const recording::EurocRecording& rec,
@@ -121,9 +120,8 @@ RunEvaluation evaluate_run(const recording::EurocRecording& rec, const Appliance
   const std::optional<dsp::StaticImuEstimate> still = still_around(rec, t0_ns);
   SE3d R_align = SE3d::Identity();
   if (options.gravity_aligned) {
-    const std::optional<SE3d> aligned = gravity_alignment(rec, t0_ns);
-    if (!aligned) throw InputError(name + ": gravity alignment needs IMU samples around the start");
-    R_align = *aligned;
+    if (!still) throw InputError(name + ": gravity alignment needs IMU samples around the start");
+    R_align = alignment_of(*still);
   }
   RunEvaluation out;
   out.gravity_aligned = options.gravity_aligned;

@@ -9,7 +9,8 @@ namespace wallar::dsp {
 
 std::optional<StaticImuEstimate> estimate_static_imu(std::span<const ImuSample> samples,
                                                      TimeNs t_begin_ns, TimeNs t_end_ns,
-                                                     std::size_t min_samples) {
+                                                     std::size_t min_samples,
+                                                     const Eigen::Vector3d& accel_bias_m_s2) {
   StaticImuEstimate est;
   Eigen::Vector3d accel_sum = Eigen::Vector3d::Zero();
   Eigen::Vector3d gyro_sum = Eigen::Vector3d::Zero();
@@ -23,7 +24,7 @@ std::optional<StaticImuEstimate> estimate_static_imu(std::span<const ImuSample> 
   }
   if (est.samples < min_samples || est.samples == 0) return std::nullopt;
   const double n = static_cast<double>(est.samples);
-  est.mean_accel_m_s2 = accel_sum / n;
+  est.mean_accel_m_s2 = accel_sum / n - accel_bias_m_s2;
   est.gyro_bias_rad_s = gyro_sum / n;
 
   const double mean_norm = est.mean_accel_m_s2.norm();
@@ -31,7 +32,7 @@ std::optional<StaticImuEstimate> estimate_static_imu(std::span<const ImuSample> 
   double gyro_var = 0.0;
   for (const ImuSample& s : samples) {
     if (s.t_ns < t_begin_ns || s.t_ns > t_end_ns) continue;
-    const double da = s.accel_m_s2.norm() - mean_norm;
+    const double da = (s.accel_m_s2 - accel_bias_m_s2).norm() - mean_norm;
     accel_var += da * da;
     gyro_var += (s.gyro_rad_s - est.gyro_bias_rad_s).squaredNorm();
   }

@@ -41,11 +41,12 @@ struct StillnessLimits {
   double max_gyro_std_rad_s = 0.1;
 };
 
-/// Estimates gravity and gyro bias from the samples with t in [t_begin_ns, t_end_ns].
+/// Estimates gravity and gyro bias from the samples with t in [t_begin_ns, t_end_ns], the
+/// accelerometer's readings less `accel_bias_m_s2` (a calibration's, ImuCalibration).
 /// Returns nothing when the window holds fewer than `min_samples`.
-std::optional<StaticImuEstimate> estimate_static_imu(std::span<const ImuSample> samples,
-                                                     TimeNs t_begin_ns, TimeNs t_end_ns,
-                                                     std::size_t min_samples = 20);
+std::optional<StaticImuEstimate> estimate_static_imu(
+    std::span<const ImuSample> samples, TimeNs t_begin_ns, TimeNs t_end_ns,
+    std::size_t min_samples = 20, const Eigen::Vector3d& accel_bias_m_s2 = Eigen::Vector3d::Zero());
 
 /// True when the estimate's spread is within the limits (the device was at rest).
 bool is_still(const StaticImuEstimate& estimate, const StillnessLimits& limits = {});
