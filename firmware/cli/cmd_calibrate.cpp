@@ -21,6 +21,11 @@
 namespace wallar::cli {
 namespace {
 
+// A measured figure, or null where there is none.
+nlohmann::json json_or_null(const std::optional<double>& v) {
+  return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+}
+
 struct ImuCamArgs {
   std::string recording;
   std::string out;        // the rig file to write
@@ -168,14 +173,11 @@ struct ImuNoiseArgs {
 int run_imu_noise(const ImuNoiseArgs& a) {
   const recording::EurocRecording rec = recording::read_recording_imu(a.recording);
   const firmware::ImuNoiseCalibration c = firmware::calibrate_imu_noise(rec, a.min_duration_s);
-  const auto opt = [](const std::optional<double>& v) {
-    return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
-  };
   const auto axes = [&](const std::array<dsp::AllanNoise, 3>& n) {
     nlohmann::json j = nlohmann::json::array();
     for (const dsp::AllanNoise& x : n) {
-      j.push_back({{"noise_density", opt(x.white_density)},
-                   {"random_walk", opt(x.random_walk)},
+      j.push_back({{"noise_density", json_or_null(x.white_density)},
+                   {"random_walk", json_or_null(x.random_walk)},
                    {"bias_instability", x.bias_instability},
                    {"tau_min_s", x.tau_min_s}});
     }
@@ -185,10 +187,10 @@ int run_imu_noise(const ImuNoiseArgs& a) {
   nlohmann::json j = {{"recording", a.recording},
                       {"duration_s", c.duration_s},
                       {"rate_hz", c.rate_hz},
-                      {"gyroscope_noise_density", opt(c.gyro_noise_density)},
-                      {"gyroscope_random_walk", opt(c.gyro_random_walk)},
-                      {"accelerometer_noise_density", opt(c.accel_noise_density)},
-                      {"accelerometer_random_walk", opt(c.accel_random_walk)},
+                      {"gyroscope_noise_density", json_or_null(c.gyro_noise_density)},
+                      {"gyroscope_random_walk", json_or_null(c.gyro_random_walk)},
+                      {"accelerometer_noise_density", json_or_null(c.accel_noise_density)},
+                      {"accelerometer_random_walk", json_or_null(c.accel_random_walk)},
                       {"gyro_axes", axes(c.gyro)},
                       {"accel_axes", axes(c.accel)},
                       {"sensor_yaml",
@@ -247,9 +249,6 @@ int run_accel_mag(const AccelMagArgs& a) {
   if (!a.imu.empty()) base = recording::read_imu_sensor_yaml(a.imu);
   const recording::EurocRecording rec = recording::read_recording_imu(a.recording);
   const firmware::AccelMagCalibration c = firmware::calibrate_accel_mag(rec, a.params);
-  const auto opt = [](const std::optional<double>& v) {
-    return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
-  };
   const std::string where = (rec.mav0 / "imu0").string();
   std::string accel_why;
   if (!c.accel.solved) {
@@ -289,8 +288,8 @@ int run_accel_mag(const AccelMagArgs& a) {
   if (c.accel_bias_truth_m_s2) {
     j["accelerometer"]["truth_bias_m_s2"] = vec_json(*c.accel_bias_truth_m_s2);
     j["accelerometer"]["bias_error_m_s2"] = (c.accel.bias_m_s2 - *c.accel_bias_truth_m_s2).norm();
-    j["accelerometer"]["tilt_error_raw_deg"] = opt(c.tilt_error_raw_deg);
-    j["accelerometer"]["tilt_error_deg"] = opt(c.tilt_error_deg);
+    j["accelerometer"]["tilt_error_raw_deg"] = json_or_null(c.tilt_error_raw_deg);
+    j["accelerometer"]["tilt_error_deg"] = json_or_null(c.tilt_error_deg);
   }
   if (c.mag) {
     const Eigen::Matrix3d& S = c.mag->soft_iron;
@@ -303,8 +302,8 @@ int run_accel_mag(const AccelMagArgs& a) {
         {"field_uT", c.mag->field_uT},
         {"residual_rms_uT", c.mag->residual_rms_uT},
         {"coverage", c.mag->coverage},
-        {"heading_spread_raw_deg", opt(c.heading_spread_raw_deg)},
-        {"heading_spread_deg", opt(c.heading_spread_deg)}};
+        {"heading_spread_raw_deg", json_or_null(c.heading_spread_raw_deg)},
+        {"heading_spread_deg", json_or_null(c.heading_spread_deg)}};
     if (!mag_why.empty()) j["magnetometer"]["why"] = mag_why;
   } else {
     j["magnetometer"] = nullptr;

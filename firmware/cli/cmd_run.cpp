@@ -60,19 +60,13 @@ struct RunArgs {
   ReplayFlags flags;
 };
 
-// The live server: off (null), or its URL and counters at the end.
-nlohmann::json live_json(const firmware::ApplianceReport& r) {
-  if (r.live_url.empty()) return nullptr;
-  nlohmann::json j = {{"url", r.live_url}};
-  for (const auto& [name, value] : r.live) j[name] = value;
-  return j;
-}
-
-// The client API: off (null), or its socket and counters at the end.
-nlohmann::json client_json(const firmware::ApplianceReport& r) {
-  if (r.client_socket.empty()) return nullptr;
-  nlohmann::json j = {{"socket", r.client_socket}};
-  for (const auto& [name, value] : r.client) j[name] = value;
+// A server of the run (the live server, the client API): off (null, its endpoint empty), or
+// its endpoint under `key` and its counters at the end.
+nlohmann::json server_json(const char* key, const std::string& endpoint,
+                           const std::vector<std::pair<const char*, std::uint64_t>>& counters) {
+  if (endpoint.empty()) return nullptr;
+  nlohmann::json j = {{key, endpoint}};
+  for (const auto& [name, value] : counters) j[name] = value;
   return j;
 }
 
@@ -129,8 +123,8 @@ nlohmann::json to_json(const firmware::ApplianceReport& r, const firmware::RunOu
         {"losses", r.view.losses}}},
       {"threads", threads},
       {"stages", stages},
-      {"live", live_json(r)},
-      {"client", client_json(r)},
+      {"live", server_json("url", r.live_url, r.live)},
+      {"client", server_json("socket", r.client_socket, r.client)},
       {"memory_locked", r.memory_locked},
       {"max_rss_kb", r.max_rss_kb}};
   if (out.room) {

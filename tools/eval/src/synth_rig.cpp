@@ -345,17 +345,13 @@ nlohmann::json write_synth_rig(const SynthRigOptions& o, const fs::path& out,
     yaml +=
         "still_start_s: " + yaml_num(mc.still_start_s) + "\nramp_s: " + yaml_num(mc.ramp_s) + "\n";
     yaml += "gravity_m_s2: " + yaml_num(imu_config.gravity_m_s2) + "\n";
-    yaml += "gyro_bias0_rad_s: [" + yaml_num(imu_config.gyro_bias0_rad_s.x()) + ", " +
-            yaml_num(imu_config.gyro_bias0_rad_s.y()) + ", " +
-            yaml_num(imu_config.gyro_bias0_rad_s.z()) + "]\n";
-    yaml += "accel_bias0_m_s2: [" + yaml_num(imu_config.accel_bias0_m_s2.x()) + ", " +
-            yaml_num(imu_config.accel_bias0_m_s2.y()) + ", " +
-            yaml_num(imu_config.accel_bias0_m_s2.z()) + "]\n";
+    const auto vec = [](const Eigen::Vector3d& v) {
+      return "[" + yaml_num(v.x()) + ", " + yaml_num(v.y()) + ", " + yaml_num(v.z()) + "]";
+    };
+    yaml += "gyro_bias0_rad_s: " + vec(imu_config.gyro_bias0_rad_s) + "\n";
+    yaml += "accel_bias0_m_s2: " + vec(imu_config.accel_bias0_m_s2) + "\n";
     if (o.magnetometer) {
       const dsp::SyntheticMagnetometerConfig& m = imu_config.mag;
-      const auto vec = [](const Eigen::Vector3d& v) {
-        return "[" + yaml_num(v.x()) + ", " + yaml_num(v.y()) + ", " + yaml_num(v.z()) + "]";
-      };
       yaml += "magnetic_field_world_uT: " + vec(m.field_world_uT) + "\n";
       yaml += "magnetometer_hard_iron_uT: " + vec(m.hard_iron_uT) + "\n";
       yaml += "magnetometer_soft_iron: [";
