@@ -26,7 +26,7 @@
  *
  * Threading: one thread (the C API's contract, and EGL's current context).
  */
-#define _POSIX_C_SOURCE 200809L /* clock_gettime, nanosleep under -std=c11 */
+#define _POSIX_C_SOURCE 200809L /* clock_gettime, nanosleep under -std=c11 (example_common.h) */
 
 #include <EGL/egl.h>
 #include <EGL/eglext.h>
@@ -35,8 +35,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
+#include "example_common.h"
 #include "wallar_client.h"
 
 #define MAX_PLANES 256
@@ -49,39 +49,10 @@ typedef struct {
   float* xyz_world_m;
 } drawn_plane;
 
-static const char* label_name(int32_t l) {
-  switch (l) {
-    case WALLAR_LABEL_FLOOR:
-      return "floor";
-    case WALLAR_LABEL_WALL:
-      return "wall";
-    case WALLAR_LABEL_CEILING:
-      return "ceiling";
-    default:
-      return "unknown";
-  }
-}
-
 static void label_rgb(int32_t l, float rgb[3]) {
   static const float kRgb[4][3] = {{150, 150, 150}, {40, 200, 60}, {40, 90, 230}, {230, 200, 40}};
   const int i = l >= 0 && l <= 3 ? l : 0;
   for (int k = 0; k < 3; ++k) rgb[k] = kRgb[i][k] / 255.0f;
-}
-
-static int64_t monotonic_ns(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
-}
-
-/* v' = q v q* for a unit quaternion (x, y, z, w). */
-static void rotate(const double q[4], const double v[3], double out[3]) {
-  const double x = q[0], y = q[1], z = q[2], w = q[3];
-  const double tx = 2 * (y * v[2] - z * v[1]), ty = 2 * (z * v[0] - x * v[2]),
-               tz = 2 * (x * v[1] - y * v[0]);
-  out[0] = v[0] + w * tx + (y * tz - z * ty);
-  out[1] = v[1] + w * ty + (z * tx - x * tz);
-  out[2] = v[2] + w * tz + (x * ty - y * tx);
 }
 
 /* q_ab * q_bc (x, y, z, w). */
@@ -106,10 +77,10 @@ static void clip_from_world(const double q_world_view[4], const double p_world_v
   for (int j = 0; j < 3; ++j) {
     const double e[3] = {j == 0, j == 1, j == 2};
     double col[3];
-    rotate(q_view_world, e, col);
+    example_rotate(q_view_world, e, col);
     for (int i = 0; i < 3; ++i) r[i][j] = col[i];
   }
-  rotate(q_view_world, p_world_view_m, t);
+  example_rotate(q_view_world, p_world_view_m, t);
   for (int i = 0; i < 3; ++i) t[i] = -t[i];
   const double sx = 2 * f_px / w_px, sy = -2 * f_px / h_px;
   const double az = (far_m + near_m) / (far_m - near_m),
@@ -133,25 +104,18 @@ static int load_planes(wallar_client* c, drawn_plane* planes, int n_old) {
   for (size_t i = 0; i < wallar_planes_count(snapshot) && n < MAX_PLANES; ++i) {
     wallar_plane p;
     if (wallar_planes_get(snapshot, i, &p) != 0 || p.vertex_count < 3) continue;
-    double* xy = malloc(2 * sizeof(double) * p.vertex_count);
+    double* xyz_world_m = example_polygon_world(snapshot, i, &p);
     float* xyz = malloc(3 * sizeof(float) * p.vertex_count);
-    if (xy == NULL || xyz == NULL) {
-      free(xy);
+    if (xyz_world_m == NULL || xyz == NULL) {
+      free(xyz_world_m);
       free(xyz);
       break;
     }
-    wallar_planes_polygon(snapshot, i, xy, p.vertex_count);
-    printf("plane id=%u label=%s world=", p.id, label_name(p.label));
-    for (uint32_t k = 0; k < p.vertex_count; ++k) {
-      const double local[3] = {xy[2 * k], xy[2 * k + 1], 0.0};
-      double w[3];
-      rotate(p.q_world_plane_xyzw, local, w);
-      for (int a = 0; a < 3; ++a) w[a] += p.p_world_plane_m[a];
-      for (int a = 0; a < 3; ++a) xyz[3 * k + a] = (float)w[a];
-      printf("%s%.6f,%.6f,%.6f", k ? ";" : "", w[0], w[1], w[2]);
-    }
+    for (uint32_t k = 0; k < 3 * p.vertex_count; ++k) xyz[k] = (float)xyz_world_m[k];
+    printf("plane id=%u label=%s world=", p.id, example_label_name(p.label));
+    example_print_points(xyz_world_m, p.vertex_count);
     printf("\n");
-    free(xy);
+    free(xyz_world_m);
     planes[n++] = (drawn_plane){p.id, p.label, p.vertex_count, xyz};
   }
   wallar_planes_end(snapshot);
@@ -260,25 +224,16 @@ static int write_ppm(const char* path, int w_px, int h_px) {
 }
 
 int main(int argc, char** argv) {
-  const char* socket_path = "/run/wallar/client.sock";
+  example_options o = {"/run/wallar/client.sock", 60.0, 16.0, 10.0, 0.0};
   const char* out_path = NULL;
-  double rate_hz = 60.0, ahead_ms = 16.0, wait_s = 10.0, duration_s = 0.0, fov_deg = 80.0;
+  double fov_deg = 80.0;
   int w_px = 640, h_px = 480;
   for (int i = 1; i < argc; i += 2) { /* options come in pairs: NAME VALUE */
     const char* a = argv[i];
     const char* v = i + 1 < argc ? argv[i + 1] : NULL;
-    if (v != NULL && strcmp(a, "--socket") == 0) {
-      socket_path = v;
-    } else if (v != NULL && strcmp(a, "--out") == 0) {
+    if (v != NULL && example_option(&o, a, v)) continue;
+    if (v != NULL && strcmp(a, "--out") == 0) {
       out_path = v;
-    } else if (v != NULL && strcmp(a, "--rate") == 0) {
-      rate_hz = atof(v);
-    } else if (v != NULL && strcmp(a, "--ahead-ms") == 0) {
-      ahead_ms = atof(v);
-    } else if (v != NULL && strcmp(a, "--wait") == 0) {
-      wait_s = atof(v);
-    } else if (v != NULL && strcmp(a, "--duration") == 0) {
-      duration_s = atof(v);
     } else if (v != NULL && strcmp(a, "--fov-deg") == 0) {
       fov_deg = atof(v);
     } else if (v != NULL && strcmp(a, "--size") == 0) {
@@ -290,6 +245,8 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  const char* socket_path = o.socket_path;
+  const double rate_hz = o.rate_hz, ahead_ms = o.ahead_ms, duration_s = o.duration_s;
   if (!(rate_hz > 0.0 && rate_hz <= 1000.0) || !(fov_deg > 1.0 && fov_deg < 179.0) || w_px < 16 ||
       h_px < 16 || w_px > 4096 || h_px > 4096) {
     fprintf(stderr,
@@ -297,18 +254,8 @@ int main(int argc, char** argv) {
             "--size in 16x16..4096x4096\n");
     return 2;
   }
-  /* The firmware may still be starting: retry while the socket is not there yet. */
-  wallar_client* c = NULL;
-  char error[512] = "";
-  const int64_t give_up_ns = monotonic_ns() + (int64_t)(wait_s * 1e9);
-  while (wallar_client_connect(socket_path, "draw_planes", &c, error, sizeof error) != 0) {
-    if (strstr(error, "refused:") != NULL || monotonic_ns() > give_up_ns) {
-      fprintf(stderr, "draw_planes: error: %s\n", error);
-      return 1;
-    }
-    struct timespec ts = {0, 50000000};
-    nanosleep(&ts, NULL);
-  }
+  wallar_client* c = example_connect(socket_path, "draw_planes", o.wait_s);
+  if (c == NULL) return 1;
   /* Where to render from: the headset's eye (its rectified left camera) in the body frame. */
   double q_body_view[4], p_body_view_m[3];
   if (wallar_client_view(c, q_body_view, p_body_view_m) != 0) {
@@ -344,11 +291,11 @@ int main(int argc, char** argv) {
   int frames = 0, drawn = 0, missed = 0, exit_code = 0;
   double draw_ms_sum = 0, draw_ms_max = 0, horizon_ms_sum = 0;
   const int64_t period_ns = (int64_t)(1e9 / rate_hz);
-  const int64_t start_ns = monotonic_ns();
+  const int64_t start_ns = example_monotonic_ns();
   const int64_t end_ns = duration_s > 0 ? start_ns + (int64_t)(duration_s * 1e9) : INT64_MAX;
   int64_t next_ns = start_ns;
   for (;;) {
-    int64_t now_ns = monotonic_ns();
+    int64_t now_ns = example_monotonic_ns();
     if (now_ns >= end_ns) break;
     if (now_ns >= next_ns) {
       /* A display frame: the eye's pose at its display time, in the sensors' clock. */
@@ -358,10 +305,10 @@ int main(int argc, char** argv) {
       if (wallar_client_locate(c, t_display_ns, &pose) != 0 || (pose.flags & valid) != valid) {
         printf("frame n=%d no pose tracking=%d\n", frames, wallar_client_tracking(c));
       } else {
-        const int64_t t0_ns = monotonic_ns();
+        const int64_t t0_ns = example_monotonic_ns();
         double q_world_view[4], p_world_view_m[3];
         compose(pose.q_world_body_xyzw, q_body_view, q_world_view);
-        rotate(pose.q_world_body_xyzw, p_body_view_m, p_world_view_m);
+        example_rotate(pose.q_world_body_xyzw, p_body_view_m, p_world_view_m);
         for (int k = 0; k < 3; ++k) p_world_view_m[k] += pose.p_world_body_m[k];
         float m[16], rgb[3];
         clip_from_world(q_world_view, p_world_view_m, f_px, w_px, h_px, m);
@@ -377,7 +324,7 @@ int main(int argc, char** argv) {
           glDrawArrays(GL_TRIANGLE_FAN, 0, (GLsizei)planes[i].vertex_count);
         }
         glFinish(); /* a display app would eglSwapBuffers here */
-        const double draw_ms = (monotonic_ns() - t0_ns) / 1e6;
+        const double draw_ms = (example_monotonic_ns() - t0_ns) / 1e6;
         const double horizon_ms = (t_display_ns - pose.t_pose_ns) / 1e6;
         printf(
             "frame n=%d t_ns=%lld ahead_ms=%.1f draw_ms=%.2f planes=%d "
@@ -396,14 +343,14 @@ int main(int argc, char** argv) {
       ++frames;
       /* A display skips the refreshes it was too late for. */
       next_ns += period_ns;
-      now_ns = monotonic_ns();
+      now_ns = example_monotonic_ns();
       if (next_ns <= now_ns) {
         const int64_t late = (now_ns - next_ns) / period_ns + 1;
         missed += (int)late;
         next_ns += late * period_ns;
       }
     }
-    int timeout_ms = (int)((next_ns - monotonic_ns()) / 1000000);
+    int timeout_ms = (int)((next_ns - example_monotonic_ns()) / 1000000);
     if (timeout_ms < 0) timeout_ms = 0;
     wallar_event events[64];
     const int n = wallar_client_poll_events(c, timeout_ms, events, 64);
@@ -428,7 +375,7 @@ int main(int argc, char** argv) {
   printf(
       "summary frames=%d drawn=%d missed=%d planes=%d rate_hz=%.1f seconds=%.2f "
       "ahead_ms_mean=%.1f draw_ms_mean=%.2f draw_ms_max=%.2f\n",
-      frames, drawn, missed, n_planes, rate_hz, (monotonic_ns() - start_ns) / 1e9,
+      frames, drawn, missed, n_planes, rate_hz, (example_monotonic_ns() - start_ns) / 1e9,
       horizon_ms_sum / d, draw_ms_sum / d, draw_ms_max);
   for (int i = 0; i < n_planes; ++i) free(planes[i].xyz_world_m);
   /* EGL is left to the process's exit: eglTerminate would unload llvmpipe with allocations of
