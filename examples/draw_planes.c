@@ -12,8 +12,8 @@
  *
  * Output lines: "view q_body_view=x,y,z,w p_body_view=x,y,z"; whenever the set changes
  * "planes model=V count=N" and N lines "plane id=... label=... world=x,y,z;..." (the polygon
- * in the world); per display frame "frame n=... t_ns=... ahead_ms=... draw_ms=... planes=N
- * p_world_body=... q_world_body=... p_world_view=x,y,z q_world_view=x,y,z,w" (ahead_ms: how
+ * in the world); per display frame "frame n=... t_ns=... past_pose_ms=... draw_ms=... planes=N
+ * p_world_body=... q_world_body=... p_world_view=x,y,z q_world_view=x,y,z,w" (past_pose_ms: how
  * far past the newest tracked pose the pose was predicted), or "frame n=... no pose
  * tracking=T" before the first pose; at the end "summary frames=... drawn=... missed=..."
  * (missed: refreshes skipped for being late) with the mean prediction and draw times.
@@ -289,7 +289,7 @@ int main(int argc, char** argv) {
   static drawn_plane planes[MAX_PLANES];
   int n_planes = 0;
   int frames = 0, drawn = 0, missed = 0, exit_code = 0;
-  double draw_ms_sum = 0, draw_ms_max = 0, horizon_ms_sum = 0;
+  double draw_ms_sum = 0, draw_ms_max = 0, past_pose_ms_sum = 0;
   const int64_t period_ns = (int64_t)(1e9 / rate_hz);
   const int64_t start_ns = example_monotonic_ns();
   const int64_t end_ns = duration_s > 0 ? start_ns + (int64_t)(duration_s * 1e9) : INT64_MAX;
@@ -325,19 +325,19 @@ int main(int argc, char** argv) {
         }
         glFinish(); /* a display app would eglSwapBuffers here */
         const double draw_ms = (example_monotonic_ns() - t0_ns) / 1e6;
-        const double horizon_ms = (t_display_ns - pose.t_pose_ns) / 1e6;
+        const double past_pose_ms = (t_display_ns - pose.t_pose_ns) / 1e6;
         printf(
-            "frame n=%d t_ns=%lld ahead_ms=%.1f draw_ms=%.2f planes=%d "
+            "frame n=%d t_ns=%lld past_pose_ms=%.1f draw_ms=%.2f planes=%d "
             "p_world_body=%.6f,%.6f,%.6f q_world_body=%.6f,%.6f,%.6f,%.6f "
             "p_world_view=%.6f,%.6f,%.6f q_world_view=%.6f,%.6f,%.6f,%.6f\n",
-            frames, (long long)t_display_ns, horizon_ms, draw_ms, n_planes, pose.p_world_body_m[0],
-            pose.p_world_body_m[1], pose.p_world_body_m[2], pose.q_world_body_xyzw[0],
-            pose.q_world_body_xyzw[1], pose.q_world_body_xyzw[2], pose.q_world_body_xyzw[3],
-            p_world_view_m[0], p_world_view_m[1], p_world_view_m[2], q_world_view[0],
-            q_world_view[1], q_world_view[2], q_world_view[3]);
+            frames, (long long)t_display_ns, past_pose_ms, draw_ms, n_planes,
+            pose.p_world_body_m[0], pose.p_world_body_m[1], pose.p_world_body_m[2],
+            pose.q_world_body_xyzw[0], pose.q_world_body_xyzw[1], pose.q_world_body_xyzw[2],
+            pose.q_world_body_xyzw[3], p_world_view_m[0], p_world_view_m[1], p_world_view_m[2],
+            q_world_view[0], q_world_view[1], q_world_view[2], q_world_view[3]);
         ++drawn;
         draw_ms_sum += draw_ms;
-        horizon_ms_sum += horizon_ms;
+        past_pose_ms_sum += past_pose_ms;
         if (draw_ms > draw_ms_max) draw_ms_max = draw_ms;
       }
       ++frames;
@@ -374,9 +374,9 @@ int main(int argc, char** argv) {
   const int d = drawn > 0 ? drawn : 1;
   printf(
       "summary frames=%d drawn=%d missed=%d planes=%d rate_hz=%.1f seconds=%.2f "
-      "ahead_ms_mean=%.1f draw_ms_mean=%.2f draw_ms_max=%.2f\n",
+      "past_pose_ms_mean=%.1f draw_ms_mean=%.2f draw_ms_max=%.2f\n",
       frames, drawn, missed, n_planes, rate_hz, (example_monotonic_ns() - start_ns) / 1e9,
-      horizon_ms_sum / d, draw_ms_sum / d, draw_ms_max);
+      past_pose_ms_sum / d, draw_ms_sum / d, draw_ms_max);
   for (int i = 0; i < n_planes; ++i) free(planes[i].xyz_world_m);
   /* EGL is left to the process's exit: eglTerminate would unload llvmpipe with allocations of
    * its own still listed, which LeakSanitizer then reports against no module (the firmware's

@@ -170,9 +170,9 @@ def main():
     print(f'{drawn} of {frames} frames drawn ({missed} refreshes skipped); last frame: '
           f'{100.0 * agree / total:.1f}% of {total} pixels as its planes '
           f'{ {i: v[0] for i, v in drawn_set.items()} } fall from its eye pose (expected %: '
-          f'{share}; drawn: {seen_count}); ahead of the pose {summary["ahead_ms_mean"]} ms, '
-          f'draw {summary["draw_ms_mean"]} ms mean, {summary["draw_ms_max"]} ms max; final set '
-          f'{want} as walls.json')
+          f'{share}; drawn: {seen_count}); predicted {summary["past_pose_ms_mean"]} ms past the '
+          f'pose, draw {summary["draw_ms_mean"]} ms mean, {summary["draw_ms_max"]} ms max; '
+          f'final set {want} as walls.json')
     # The planes fill a real part of the view, and the frame shows each in its label's colour
     # where it falls (the pixels that disagree lie on the polygons' edges).
     assert total - expected_count['none'] > 0.05 * total, share
