@@ -14,28 +14,14 @@
  *
  * Threading: one thread (the C API's contract for everything but locate()).
  */
-#define _POSIX_C_SOURCE 200809L /* clock_gettime, nanosleep under -std=c11 */
+#define _POSIX_C_SOURCE 200809L /* clock_gettime, nanosleep under -std=c11 (example_common.h) */
 
-#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
+#include "example_common.h"
 #include "wallar_client.h"
-
-static const char* label_name(int32_t l) {
-  switch (l) {
-    case WALLAR_LABEL_FLOOR:
-      return "floor";
-    case WALLAR_LABEL_WALL:
-      return "wall";
-    case WALLAR_LABEL_CEILING:
-      return "ceiling";
-    default:
-      return "unknown";
-  }
-}
 
 static const char* orientation_name(int32_t o) {
   switch (o) {
@@ -50,22 +36,6 @@ static const char* orientation_name(int32_t o) {
   }
 }
 
-static int64_t monotonic_ns(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
-}
-
-/* v' = q v q* for a unit quaternion (x, y, z, w). */
-static void rotate(const double q[4], const double v[3], double out[3]) {
-  const double x = q[0], y = q[1], z = q[2], w = q[3];
-  const double tx = 2 * (y * v[2] - z * v[1]), ty = 2 * (z * v[0] - x * v[2]),
-               tz = 2 * (x * v[1] - y * v[0]);
-  out[0] = v[0] + w * tx + (y * tz - z * ty);
-  out[1] = v[1] + w * ty + (z * tx - x * tz);
-  out[2] = v[2] + w * tz + (x * ty - y * tx);
-}
-
 static void print_snapshot(wallar_client* c, const char* what) {
   wallar_planes* planes = NULL;
   if (wallar_client_begin_planes(c, &planes) != 0) return;
@@ -75,67 +45,38 @@ static void print_snapshot(wallar_client* c, const char* what) {
   for (size_t i = 0; i < n; ++i) {
     wallar_plane p;
     if (wallar_planes_get(planes, i, &p) != 0) continue;
-    double* xy = calloc(2 * (size_t)p.vertex_count + 2, sizeof(double));
-    if (xy == NULL) break;
-    wallar_planes_polygon(planes, i, xy, p.vertex_count);
+    double* xyz_world_m = example_polygon_world(planes, i, &p);
+    if (xyz_world_m == NULL) break;
     printf("plane id=%u label=%s orientation=%s changes=%llu extent=%.4f,%.4f world=", p.id,
-           label_name(p.label), orientation_name(p.orientation), (unsigned long long)p.change_count,
-           p.extent_m[0], p.extent_m[1]);
-    for (uint32_t k = 0; k < p.vertex_count; ++k) {
-      const double local[3] = {xy[2 * k], xy[2 * k + 1], 0.0};
-      double w[3];
-      rotate(p.q_world_plane_xyzw, local, w);
-      printf("%s%.6f,%.6f,%.6f", k ? ";" : "", w[0] + p.p_world_plane_m[0],
-             w[1] + p.p_world_plane_m[1], w[2] + p.p_world_plane_m[2]);
-    }
+           example_label_name(p.label), orientation_name(p.orientation),
+           (unsigned long long)p.change_count, p.extent_m[0], p.extent_m[1]);
+    example_print_points(xyz_world_m, p.vertex_count);
     printf("\n");
-    free(xy);
+    free(xyz_world_m);
   }
   wallar_planes_end(planes);
   fflush(stdout);
 }
 
 int main(int argc, char** argv) {
-  const char* socket_path = "/run/wallar/client.sock";
-  double rate_hz = 30.0, ahead_ms = 16.0, wait_s = 10.0, duration_s = 0.0;
+  example_options o = {"/run/wallar/client.sock", 30.0, 16.0, 10.0, 0.0};
   /* Options come in pairs: NAME VALUE. */
   for (int i = 1; i < argc; i += 2) {
-    const char* a = argv[i];
-    const char* v = i + 1 < argc ? argv[i + 1] : NULL;
-    if (v != NULL && strcmp(a, "--socket") == 0) {
-      socket_path = v;
-    } else if (v != NULL && strcmp(a, "--rate") == 0) {
-      rate_hz = atof(v);
-    } else if (v != NULL && strcmp(a, "--ahead-ms") == 0) {
-      ahead_ms = atof(v);
-    } else if (v != NULL && strcmp(a, "--wait") == 0) {
-      wait_s = atof(v);
-    } else if (v != NULL && strcmp(a, "--duration") == 0) {
-      duration_s = atof(v);
-    } else {
+    if (i + 1 >= argc || !example_option(&o, argv[i], argv[i + 1])) {
       fprintf(stderr,
               "usage: print_planes [--socket PATH] [--rate HZ] [--ahead-ms MS] [--wait S] "
               "[--duration S]\n");
       return 2;
     }
   }
+  const char* socket_path = o.socket_path;
+  const double rate_hz = o.rate_hz, ahead_ms = o.ahead_ms, duration_s = o.duration_s;
   if (!(rate_hz > 0.0 && rate_hz <= 1000.0)) {
     fprintf(stderr, "print_planes: error: --rate must be in (0, 1000] Hz\n");
     return 2;
   }
-  /* The firmware may still be starting: retry while the socket is not there yet. */
-  wallar_client* c = NULL;
-  char error[512] = "";
-  const int64_t give_up_ns = monotonic_ns() + (int64_t)(wait_s * 1e9);
-  for (;;) {
-    if (wallar_client_connect(socket_path, "print_planes", &c, error, sizeof error) == 0) break;
-    if (strstr(error, "refused:") != NULL || monotonic_ns() > give_up_ns) {
-      fprintf(stderr, "print_planes: error: %s\n", error);
-      return 1;
-    }
-    struct timespec ts = {0, 50000000};
-    nanosleep(&ts, NULL);
-  }
+  wallar_client* c = example_connect(socket_path, "print_planes", o.wait_s);
+  if (c == NULL) return 1;
   printf("connected %s\n", socket_path);
   /* Where to render from: the headset's eye (its rectified left camera) in the body frame. */
   double q_view[4], p_view[3];
@@ -145,10 +86,10 @@ int main(int argc, char** argv) {
   }
   fflush(stdout);
   const int64_t period_ns = (int64_t)(1e9 / rate_hz);
-  const int64_t end_ns = duration_s > 0 ? monotonic_ns() + (int64_t)(duration_s * 1e9) : 0;
-  int64_t next_ns = monotonic_ns();
+  const int64_t end_ns = duration_s > 0 ? example_monotonic_ns() + (int64_t)(duration_s * 1e9) : 0;
+  int64_t next_ns = example_monotonic_ns();
   for (;;) {
-    const int64_t now = monotonic_ns();
+    const int64_t now = example_monotonic_ns();
     if (end_ns != 0 && now >= end_ns) break;
     if (now >= next_ns) {
       /* A display frame: the pose at its (predicted) display time, in the sensors' clock. */
@@ -166,7 +107,7 @@ int main(int argc, char** argv) {
       next_ns += period_ns;
       if (next_ns < now) next_ns = now + period_ns;
     }
-    int timeout_ms = (int)((next_ns - monotonic_ns()) / 1000000);
+    int timeout_ms = (int)((next_ns - example_monotonic_ns()) / 1000000);
     if (timeout_ms < 0) timeout_ms = 0;
     wallar_event events[64];
     const int n = wallar_client_poll_events(c, timeout_ms, events, 64);

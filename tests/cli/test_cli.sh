@@ -545,6 +545,45 @@ print(s.recv(4096)[12:].decode())" 2>&1)
       fail "run 3 counters: $(python3 -c "import json; print(json.load(open('$tmp/run3.json'))['client'])")"
   fi
   ;;
+client_draw)
+  # The EGL example (issue 20): examples/draw_planes against `wallar run --board sim.yaml
+  # --client-socket` (the bundled still recording, looped). A draws at 30 Hz for a while and
+  # writes its last frame: its frames plus the refreshes it skipped are its rate times its
+  # duration, each eye pose is the body pose times the view, and the frame shows the planes
+  # it had in their labels' colours where they fall from its last eye pose. B draws until the
+  # firmware stops (SIGTERM): one line on stderr, exit 1, its summary still printed, and the
+  # last plane set it got (the model the firmware fits as it stops) is walls.json's: ids,
+  # labels (floor and wall) and corners (tests/client/check_drawn_planes.py).
+  dp=${WALLAR_DRAW_PLANES:-}
+  [ -x "$dp" ] || fail "no draw_planes binary (WALLAR_DRAW_PLANES='$dp')"
+  secs=6 strict=--strict
+  [ -n "${WALLAR_EMULATOR:-}${WALLAR_SANITIZE:-}" ] && secs=12 strict=
+  sock="$tmp/c.sock"
+  ${WALLAR_EMULATOR:-} "$bin" run --board "$src/board/sim.yaml" --client-socket "$sock" --loop 0 \
+    --no-view --json --out "$tmp/o" >"$tmp/run.json" 2>"$tmp/run.err" &
+  pid=$!
+  ${WALLAR_EMULATOR:-} "$dp" --socket "$sock" --rate 30 --duration $secs --size 320x240 \
+    --fov-deg 80 --out "$tmp/last.ppm" --wait 30 >"$tmp/a" 2>"$tmp/a.err" &
+  apid=$!
+  ${WALLAR_EMULATOR:-} "$dp" --socket "$sock" --rate 10 --size 64x48 --wait 30 >"$tmp/b" \
+    2>"$tmp/b.err" &
+  bpid=$!
+  wait $apid; arc=$?
+  [ $arc = 0 ] || { kill $pid $bpid; fail "draw_planes exited $arc: $(cat "$tmp/a.err")"; }
+  kill -TERM $pid
+  wait $pid || fail "run exited $?: $(cat "$tmp/run.err")"
+  wait $bpid; brc=$?
+  [ $brc = 1 ] && [ "$(grep -c . "$tmp/b.err")" = 1 ] &&
+    grep -q "^draw_planes: error: the firmware closed the connection after [0-9]* frames$" "$tmp/b.err" &&
+    grep -q '^summary frames=' "$tmp/b" ||
+    fail "draw_planes when the firmware stopped: exit $brc, stderr: $(cat "$tmp/b.err")"
+  python3 "$src/tests/client/check_drawn_planes.py" "$tmp/a" "$tmp/last.ppm" "$tmp/b" \
+    "$tmp/o/walls.json" --rate 30 --duration $secs --fov-deg 80 $strict ||
+    fail "draw_planes: $(grep -v '^frame' "$tmp/a" | head -c 2000)"
+  # Bad options: one line, exit 2, before connecting.
+  out=$(${WALLAR_EMULATOR:-} "$dp" --size 10x10 2>&1); rc=$?
+  [ $rc = 2 ] && [ "$(printf '%s\n' "$out" | wc -l)" = 1 ] || fail "--size 10x10: exit $rc: $out"
+  ;;
 client_prediction)
   # The client API's prediction on the pipeline: a synthetic 6 s of quick turns (300 deg/s
   # peaks) replayed in real time through `wallar run --client-socket`, print_planes asking for

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
 # libwallar-client as an application sees it once installed: the client's install rules into
-# a temporary prefix, then the example and a C++ use of the wrapper built with nothing but
-# `pkg-config wallar-client`, run against a socket that is not there (a one-line error, exit 1).
+# a temporary prefix, then the examples and a C++ use of the wrapper built with nothing but
+# `pkg-config wallar-client` (draw_planes adds egl and glesv2), run against a socket that is not
+# there (a one-line error, exit 1).
 # The library exports only its C API and carries its soname.
 #
 # usage: test_install.sh BUILD_DIR SOURCE_DIR
@@ -30,6 +31,9 @@ for f in connect disconnect fd now_ns locate poll_events tracking begin_planes; 
 done
 cc -std=c11 -Wall -Wextra -Werror "$src/examples/print_planes.c" $flags -o "$tmp/print_planes" ||
   fail "print_planes.c does not build with pkg-config's flags"
+gl_flags=$(pkg-config --cflags --libs egl glesv2) || fail "pkg-config egl glesv2: $gl_flags"
+cc -std=c11 -Wall -Wextra -Werror "$src/examples/draw_planes.c" $flags $gl_flags -lm \
+  -o "$tmp/draw_planes" || fail "draw_planes.c does not build with pkg-config's flags"
 cat >"$tmp/use.cpp" <<'CPP'
 #include <wallar_client.hpp>
 #include <cstdio>
@@ -45,12 +49,14 @@ int main() {
 CPP
 c++ -std=c++17 -Wall -Wextra -Werror "$tmp/use.cpp" $flags -o "$tmp/use" ||
   fail "the C++ wrapper does not build (C++17) with pkg-config's flags"
-out=$(LD_LIBRARY_PATH=$libdir "$tmp/print_planes" --socket /nonexistent/wallar.sock --wait 0 2>&1)
-rc=$?
-[ $rc = 1 ] || fail "print_planes exit $rc: $out"
-[ "$(printf '%s\n' "$out" | wc -l)" = 1 ] || fail "not one line: $out"
-case "$out" in *"/nonexistent/wallar.sock: cannot connect: No such file or directory"*) ;;
-  *) fail "print_planes said: $out" ;; esac
+for app in print_planes draw_planes; do
+  out=$(LD_LIBRARY_PATH=$libdir "$tmp/$app" --socket /nonexistent/wallar.sock --wait 0 2>&1)
+  rc=$?
+  [ $rc = 1 ] || fail "$app exit $rc: $out"
+  [ "$(printf '%s\n' "$out" | wc -l)" = 1 ] || fail "$app: not one line: $out"
+  case "$out" in "$app: error: "*"/nonexistent/wallar.sock: cannot connect: No such file or directory"*) ;;
+    *) fail "$app said: $out" ;; esac
+done
 out=$(LD_LIBRARY_PATH=$libdir "$tmp/use" 2>&1)
 [ $? = 1 ] || fail "the C++ wrapper did not throw: $out"
 case "$out" in *"cannot connect"*) ;; *) fail "the C++ wrapper said: $out" ;; esac
