@@ -162,10 +162,7 @@ void PushModule::run(source::SensorSink& sink, const std::atomic<bool>& stop) {
 }
 
 bool PushModule::join_within(DurationNs timeout_ns) {
-  if (!thread_) return true;
-  if (!wait_flag(done_, timeout_ns) && !thread_->failed()) return false;
-  thread_->join();
-  return true;
+  return join_source_thread(thread_.get(), done_, timeout_ns);
 }
 
 std::string PushModule::describe() const {
@@ -175,8 +172,6 @@ std::string PushModule::describe() const {
   return buf;
 }
 
-std::exception_ptr PushModule::error() const {
-  return thread_ && thread_->failed() ? thread_->exception() : std::exception_ptr();
-}
+std::exception_ptr PushModule::error() const { return source_thread_error(thread_.get()); }
 
 }  // namespace wallar::firmware
