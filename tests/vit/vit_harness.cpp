@@ -202,7 +202,7 @@ void check_bad_input(const VitFunctions& v, const wallar::RigCalibration& rig) {
   check(v.tracker_enable_extension(t, VIT_TRACKER_EXTENSION_POSE_FEATURES, true) ==
             VIT_ERROR_NOT_SUPPORTED,
         "the features extension says it is not supported");
-  check(v.tracker_enable_extension(t, static_cast<vit_tracker_extension_t>(99), true) ==
+  check(v.tracker_enable_extension(t, static_cast<vit_tracker_extension_t>(5), true) ==
             VIT_ERROR_INVALID_VALUE,
         "an unknown extension is refused");
   vit_pose_t* pose = reinterpret_cast<vit_pose_t*>(&imu);

@@ -62,6 +62,16 @@ double one_of_three(const double* v) {
   return v[0] == v[1] && v[1] == v[2] ? v[0] : (v[0] + v[1] + v[2]) / 3.0;
 }
 
+// An enumerator as the caller passed it: C may pass any int, which a C++ load of the enum type
+// would not take (a value outside its range is undefined behaviour), so the bytes are read.
+template <typename Enum>
+int raw_enum(const Enum& e) {
+  static_assert(sizeof(Enum) == sizeof(int));
+  int v = 0;
+  std::memcpy(&v, &e, sizeof v);
+  return v;
+}
+
 // A row-major 3x3 as a matrix.
 Eigen::Matrix3d matrix3_of(const double* m) {
   Eigen::Matrix3d out;
@@ -223,6 +233,13 @@ struct vit_tracker {
     worker.join();
     if (!worker_error.empty())
       vit_log("the tracker stopped with an error: %s", worker_error.c_str());
+    {
+      const std::lock_guard lock(poses_mutex);
+      if (poses_dropped > 0) {
+        vit_log("%llu poses dropped: not popped while %zu were queued",
+                static_cast<unsigned long long>(poses_dropped), kMaxQueuedPoses);
+      }
+    }
     const wallar::firmware::PushCounters c = module->counters();
     if (c.imu_full + c.images_full + c.imu_out_of_order + c.images_out_of_order > 0) {
       vit_log(
@@ -313,7 +330,7 @@ WALLAR_VIT_EXPORT vit_result_t vit_tracker_has_image_format(const vit_tracker_t*
                                                             vit_image_format_t image_format,
                                                             bool* out_supported) {
   if (tracker == nullptr || out_supported == nullptr) return VIT_ERROR_INVALID_VALUE;
-  *out_supported = image_format == VIT_IMAGE_FORMAT_L8;
+  *out_supported = raw_enum(image_format) == VIT_IMAGE_FORMAT_L8;
   return VIT_SUCCESS;
 }
 
@@ -337,7 +354,7 @@ WALLAR_VIT_EXPORT vit_result_t vit_tracker_enable_extension(vit_tracker_t* track
                                                             vit_tracker_extension_t ext,
                                                             bool enable) {
   if (tracker == nullptr) return VIT_ERROR_INVALID_VALUE;
-  switch (ext) {
+  switch (raw_enum(ext)) {
     case VIT_TRACKER_EXTENSION_ADD_CAMERA_CALIBRATION:
     case VIT_TRACKER_EXTENSION_ADD_IMU_CALIBRATION:
       return enable ? VIT_SUCCESS : VIT_ERROR_NOT_SUPPORTED;  // always on
@@ -403,7 +420,7 @@ WALLAR_VIT_EXPORT vit_result_t vit_tracker_push_img_sample(vit_tracker_t* tracke
   wallar::firmware::PushModule* module = tracker->push.load(std::memory_order_acquire);
   if (module == nullptr) return VIT_ERROR_INVALID_VALUE;  // not started
   if (sample->cam_index > 1) return VIT_ERROR_INVALID_VALUE;
-  if (sample->format != VIT_IMAGE_FORMAT_L8) return VIT_ERROR_NOT_SUPPORTED;
+  if (raw_enum(sample->format) != VIT_IMAGE_FORMAT_L8) return VIT_ERROR_NOT_SUPPORTED;
   const wallar::CameraCalibration& cam = tracker->rig.cams[sample->cam_index];
   const std::uint64_t rows_bytes =
       sample->height == 0
@@ -479,7 +496,8 @@ WALLAR_VIT_EXPORT vit_result_t vit_tracker_add_camera_calibration(
   const vit_camera_calibration_t& c = *calibration;
   const unsigned index = c.camera_index;
   std::size_t coefficients = 0;
-  switch (c.model) {
+  const int model = raw_enum(c.model);
+  switch (model) {
     case VIT_CAMERA_DISTORTION_NONE:
       coefficients = 0;
       break;
@@ -499,8 +517,7 @@ WALLAR_VIT_EXPORT vit_result_t vit_tracker_add_camera_calibration(
           index);
       return VIT_ERROR_NOT_SUPPORTED;
     default:
-      vit_log("add_camera_calibration: camera %u: unknown distortion model %d", index,
-              static_cast<int>(c.model));
+      vit_log("add_camera_calibration: camera %u: unknown distortion model %d", index, model);
       return VIT_ERROR_INVALID_VALUE;
   }
   const double intrinsics[] = {c.frequency, c.fx, c.fy, c.cx, c.cy};
