@@ -10,6 +10,9 @@ target_compile_options(wallar_build_flags INTERFACE -Wall -Wextra -Werror -Wshad
 # and seeded RANSAC runs diverge between the board and the host. Fused multiply-adds stay
 # where the code asks for them (the SIMD kernel's MulAdd).
 target_compile_options(wallar_build_flags INTERFACE -ffp-contract=off)
+# Libraries are position-independent (CMAKE_POSITION_INDEPENDENT_CODE, for libwallar_vit.so);
+# nothing of ours is interposed, so calls stay direct and inlinable as without -fPIC.
+target_compile_options(wallar_build_flags INTERFACE -fno-semantic-interposition)
 # Unity builds (CI: CMAKE_UNITY_BUILD) include each .cpp into a combined file, where GCC sees a
 # class of one .cpp holding a member of an anonymous-namespace type of the same .cpp as a type
 # "defined in another file" and warns; in one-file-per-TU builds it is silent and harmless.

@@ -2,7 +2,8 @@
 # The Debian package: `cpack --config <build>/CPackConfig.cmake` (tools/package wraps it) turns
 # this build's install tree into wallar_<version>_<arch>.deb for bookworm: the binary, the
 # systemd unit, the board files, /etc/wallar/board.yaml (a conffile), udev rules, the manual
-# page, libwallar-client (the apps' library, its headers and pkg-config file), and maintainer
+# page, libwallar-client (the apps' library, its headers and pkg-config file), libwallar_vit.so
+# (the tracker Monado loads, under /usr/lib/<arch>/wallar, and its header), and maintainer
 # scripts that create the service user and enable the service
 # (tools/debian/). The cross build makes the arm64 package, a host build the amd64 one.
 

@@ -194,8 +194,8 @@ BoardConfig parse_board(std::string_view text, const std::string& name, const fs
   if (const YamlNode* th = root.find("threads")) {
     th->check_keys({kThreadNames[0], kThreadNames[1], kThreadNames[2], kThreadNames[3],
                     kThreadNames[4], kThreadNames[5], kThreadNames[6], kThreadNames[7],
-                    kThreadNames[8], kThreadNames[9], kThreadNames[10]});
-    static_assert(std::size(kThreadNames) == 11, "threads: check_keys lists every name");
+                    kThreadNames[8], kThreadNames[9], kThreadNames[10], kThreadNames[11]});
+    static_assert(std::size(kThreadNames) == 12, "threads: check_keys lists every name");
     for (const std::string_view thread : kThreadNames) {
       const YamlNode* n = th->find(std::string(thread));
       if (n == nullptr) continue;

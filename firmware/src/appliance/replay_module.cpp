@@ -44,10 +44,7 @@ void ReplayModule::start(source::SensorSink& sink, drivers::ImuSampleSink& /*imu
 }
 
 bool ReplayModule::join_within(DurationNs timeout_ns) {
-  if (!thread_) return true;
-  if (!wait_flag(done_, timeout_ns) && !thread_->failed()) return false;
-  thread_->join();
-  return true;
+  return join_source_thread(thread_.get(), done_, timeout_ns);
 }
 
 std::string ReplayModule::describe() const {
@@ -59,9 +56,7 @@ std::string ReplayModule::describe() const {
   return plan_ ? buf + plan_->describe() : std::string(buf);
 }
 
-std::exception_ptr ReplayModule::error() const {
-  return thread_ && thread_->failed() ? thread_->exception() : std::exception_ptr();
-}
+std::exception_ptr ReplayModule::error() const { return source_thread_error(thread_.get()); }
 
 source::ReplayStats ReplayModule::stats() const {
   const std::lock_guard lock(mutex_);

@@ -17,4 +17,15 @@ bool wait_flag(const std::atomic<bool>& flag, DurationNs timeout_ns) {
   return true;
 }
 
+bool join_source_thread(RtThread* thread, const std::atomic<bool>& done, DurationNs timeout_ns) {
+  if (thread == nullptr) return true;
+  if (!wait_flag(done, timeout_ns) && !thread->failed()) return false;
+  thread->join();
+  return true;
+}
+
+std::exception_ptr source_thread_error(const RtThread* thread) {
+  return thread != nullptr && thread->failed() ? thread->exception() : std::exception_ptr();
+}
+
 }  // namespace wallar::firmware

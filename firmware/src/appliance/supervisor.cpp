@@ -51,9 +51,30 @@ bool wait_for_tracking(const RtThread& thread, const TrackingThread& tracker, Du
   return true;
 }
 
+// A source from outside the board (run_over_source()): its rig and the module.
+struct GivenSource {
+  const RigCalibration& rig;
+  const std::string& rig_source;
+  SourceModule& module;  //!< the caller's: it outlives the run
+};
+
 ApplianceReport run_modules(const BoardConfig& board, const ApplianceOptions& options_in,
                             const std::atomic<bool>& stop, std::atomic<bool>* stats_request,
-                            const recording::EurocRecording* given);
+                            const recording::EurocRecording* given, GivenSource* given_source);
+
+// Offline, the board sizes the pipeline; none of its devices is opened, inputs included
+// (`wallar track --board board/rpi5.yaml` on a laptop has no gpiochip4, nor a remote).
+BoardConfig without_devices(const BoardConfig& board) {
+  BoardConfig b = board;
+  b.reset_button.reset();
+  b.exit_button.reset();
+  b.keys.clear();
+  b.camera_trigger.reset();
+  b.live.reset();  // an offline command serves nothing
+  b.client.reset();
+  if (b.name.empty()) b.name = "offline";
+  return b;
+}
 
 }  // namespace
 
@@ -71,7 +92,7 @@ const char* to_string(ApplianceMode mode) {
 
 ApplianceReport run_appliance(const BoardConfig& board, const ApplianceOptions& options,
                               const std::atomic<bool>& stop, std::atomic<bool>* stats_request) {
-  return run_modules(board, options, stop, stats_request, nullptr);
+  return run_modules(board, options, stop, stats_request, nullptr, nullptr);
 }
 
 ApplianceReport run_over_recording(const recording::EurocRecording& rec, const BoardConfig& board,
@@ -79,34 +100,33 @@ ApplianceReport run_over_recording(const recording::EurocRecording& rec, const B
   if (rec.cams[0].frames.empty() || rec.cams[1].frames.empty()) {
     throw InputError(rec.mav0.string() + ": the recording has no stereo frames");
   }
-  BoardConfig replay_board = board;
+  BoardConfig replay_board = without_devices(board);
   replay_board.source = BoardConfig::Source::kReplay;
   replay_board.replay.recording = rec.mav0;
-  // Offline, the board sizes the pipeline; none of its devices is opened, inputs included
-  // (`wallar track --board board/rpi5.yaml` on a laptop has no gpiochip4, nor a remote).
-  replay_board.reset_button.reset();
-  replay_board.exit_button.reset();
-  replay_board.keys.clear();
-  replay_board.camera_trigger.reset();
-  replay_board.live.reset();  // an offline command serves nothing
-  replay_board.client.reset();
-  if (replay_board.name.empty()) replay_board.name = "offline";
-  return run_modules(replay_board, options, stop, nullptr, &rec);
+  return run_modules(replay_board, options, stop, nullptr, &rec, nullptr);
+}
+
+ApplianceReport run_over_source(const RigCalibration& rig, const std::string& rig_source,
+                                SourceModule& source, const BoardConfig& board,
+                                const ApplianceOptions& options, const std::atomic<bool>& stop) {
+  GivenSource given{rig, rig_source, source};
+  return run_modules(without_devices(board), options, stop, nullptr, nullptr, &given);
 }
 
 namespace {
 
 ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions& options_in,
                             const std::atomic<bool>& stop, std::atomic<bool>* stats_request,
-                            const recording::EurocRecording* given) {
+                            const recording::EurocRecording* given, GivenSource* given_source) {
   // A live board's devices become what was found at start (GPIO chips by path).
   BoardConfig board = board_in;
   ApplianceOptions options = options_in;
   if (!options.log) options.log = default_log;
-  const bool replay = board.source == BoardConfig::Source::kReplay;
+  const bool replay = given_source == nullptr && board.source == BoardConfig::Source::kReplay;
   const bool lockstep = options.mode == ApplianceMode::kLockStep;
   const bool every_frame = options.mode != ApplianceMode::kRealTime;
-  if (!replay && (every_frame || options.replay_plan)) {
+  // A given source waits for the pipeline as a replay does; a replay plan needs a recording.
+  if ((!replay && options.replay_plan) || (!replay && given_source == nullptr && every_frame)) {
     throw InputError(board.file.string() +
                      ": --deterministic, --fault and --loop need a replay board");
   }
@@ -119,7 +139,10 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   const recording::EurocRecording* rec = given;
   RigCalibration rig;
   std::string rig_source;
-  if (replay) {
+  if (given_source != nullptr) {
+    rig = given_source->rig;
+    rig_source = given_source->rig_source;
+  } else if (replay) {
     if (rec == nullptr) rec = &read.emplace(recording::read_recording(board.replay.recording));
     rig = rec->rig();
     rig_source = rec->mav0.string();
@@ -197,6 +220,7 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   tracking.max_records = options.max_records;
   tracking.log = &log_ring;
   tracking.before_frame = options.before_frame;
+  tracking.on_frame_pose = options.on_frame_pose;
   ReconstructionOptions reconstruction_options;
   reconstruction_options.method = options.wall_method;
   reconstruction_options.threshold_m = options.wall_threshold_m;
@@ -249,15 +273,20 @@ ApplianceReport run_modules(const BoardConfig& board_in, const ApplianceOptions&
   // the source, so that it outlives the source's threads.
   std::optional<RecordingTee> tee;
   if (options.record != nullptr) tee.emplace(pipeline, *options.record);
-  std::unique_ptr<SourceModule> source;
+  std::unique_ptr<SourceModule> owned_source;
+  SourceModule* source = nullptr;
   ReplayModule* replay_module = nullptr;
-  if (replay) {
+  if (given_source != nullptr) {
+    source = &given_source->module;
+  } else if (replay) {
     auto r = std::make_unique<ReplayModule>(
         *rec, options.replay, options.replay_plan ? options.replay_plan(*rec) : nullptr, &board);
     replay_module = r.get();
-    source = std::move(r);
+    owned_source = std::move(r);
+    source = owned_source.get();
   } else {
-    source = std::make_unique<LiveModule>(board, &log_ring);
+    owned_source = std::make_unique<LiveModule>(board, &log_ring);
+    source = owned_source.get();
   }
 
   // Threads, consumers first so nothing produced is lost.

@@ -19,6 +19,7 @@ constexpr ThreadTableEntry kThreadTable[] = {
     {"imu", 80, -1, 1 * kMiB, "IMU driver: FIFO, time stamps", false},
     {"capture", 70, -1, 1 * kMiB, "V4L2 capture and stereo pairing", false},
     {"replay", 70, -1, 2 * kMiB, "recording played as the sensors", false},
+    {"push", 70, -1, 1 * kMiB, "pushed samples (VIT library) merged and paired", false},
     {"tracking", 60, -1, 4 * kMiB, "IMU filter, tracker, degraded modes", false},
     {"mapping", 0, -1, 8 * kMiB, "key-frames, bundle adjustment", false},
     {"reconstruct", 0, -1, 4 * kMiB, "walls, floor, ceiling", false},

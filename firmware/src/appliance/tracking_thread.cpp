@@ -234,6 +234,12 @@ void TrackingThread::on_frame(const StereoFrame& f) {
   if (records_.size() < records_.capacity()) {
     records_.push_back({f.t_ns, T_world_body, r.state, r.rejected, r.keyframe, r.times});
   }
+  if (options_.on_frame_pose) {
+    // In the first body pose's world, as the commands' files (T_body_rect: the tracker's world).
+    options_.on_frame_pose({f.t_ns, f.left.publish_t_ns, taken_ns,
+                            system_.tracker().T_body_rect() * T_world_body, r.state,
+                            r.rejected != nullptr, r.times});
+  }
   if (r.rejected != nullptr) return;
   ++tracked_;
   last_frame_t_ns_ = f.t_ns;

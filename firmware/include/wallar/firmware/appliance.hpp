@@ -53,6 +53,7 @@
 #include "wallar/firmware/appliance/reconstruction.hpp"
 #include "wallar/firmware/appliance/records.hpp"
 #include "wallar/firmware/appliance/replay_module.hpp"
+#include "wallar/firmware/appliance/source_module.hpp"
 #include "wallar/firmware/appliance/stats.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/live_view.hpp"
@@ -103,9 +104,12 @@ struct ApplianceOptions {
   bool realtime = true;    //!< SCHED_FIFO, affinity, mlockall where permitted
   std::uint64_t seed = 1;  //!< wall search seeds (seed + run index)
   std::string input_keys;  //!< evdev keyboard ("/dev/input/eventN", "name:..."), or none
-  /// Tests: one more input beside the board's, asked by the supervisor at every tick (its
-  /// thread) when the board's gave nothing.
+  /// Tests and embedders (the VIT library's reset): one more input beside the board's, asked
+  /// by the supervisor at every tick (its thread) when the board's gave nothing.
   std::function<drivers::InputAction(TimeNs now_ns)> test_input;
+  /// Embedders (the VIT library): each frame's outcome, called on the tracking thread right
+  /// after the frame (tracked, lost or rejected); must return quickly and never block.
+  std::function<void(const FramePose&)> on_frame_pose;
   /// Also hand every sample the source delivers to this recorder (`wallar run --record`; its
   /// rings never block: a full ring drops, counted); null: none. It outlives the run.
   source::AsyncRecorder* record = nullptr;
@@ -165,5 +169,15 @@ struct ApplianceReport {
 ApplianceReport run_appliance(const BoardConfig& board, const ApplianceOptions& options,
                               const std::atomic<bool>& stop,
                               std::atomic<bool>* stats_request = nullptr);
+
+/// The appliance fed by `source` (a PushModule: samples pushed from outside, the VIT library;
+/// the caller's, started by this call and joined before it returns) on the rig `rig`
+/// (`rig_source` names it in errors), sized by `board` (none of its devices is opened); every
+/// mode is allowed, since the source waits for the pipeline as a replay does. Runs until the
+/// source finished and the pipeline drained, or `stop`. Throws as run_appliance() does
+/// (InputError for a calibration the tracker cannot use, before the source is started).
+ApplianceReport run_over_source(const RigCalibration& rig, const std::string& rig_source,
+                                SourceModule& source, const BoardConfig& board,
+                                const ApplianceOptions& options, const std::atomic<bool>& stop);
 
 }  // namespace wallar::firmware

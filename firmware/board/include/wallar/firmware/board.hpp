@@ -91,9 +91,9 @@ struct ThreadPlacementConfig {
 };
 
 /// The names threads.NAME may take (the thread table's).
-inline constexpr const char* kThreadNames[] = {"imu",     "capture",     "replay", "tracking",
-                                               "mapping", "reconstruct", "render", "supervisor",
-                                               "log",     "live",        "client"};
+inline constexpr const char* kThreadNames[] = {"imu",        "capture", "replay",      "push",
+                                               "tracking",   "mapping", "reconstruct", "render",
+                                               "supervisor", "log",     "live",        "client"};
 
 /// live: the live server (Foxglove's WebSocket protocol, firmware/appliance/live_publisher.hpp).
 /// Off unless the board has the section or `wallar run --live` asks.

@@ -30,6 +30,21 @@ struct PoseRecord {
   dsp::TrackerTimes times;  //!< the tracker's stage times for this frame
 };
 
+/// One frame's outcome as an embedder gets it (ApplianceOptions::on_frame_pose, the VIT
+/// library): the body in the first body pose's world (the world of `wallar track`'s files),
+/// and when the frame was handed on, taken and done.
+struct FramePose {
+  TimeNs t_ns = 0;  //!< the frame's (left image's) sensor time
+  TimeNs publish_t_ns =
+      0;                //!< CLOCK_MONOTONIC when the source handed the left image on (0: unknown)
+  TimeNs taken_ns = 0;  //!< CLOCK_MONOTONIC when the tracking thread took the frame
+  SE3d T_world_body =
+      SE3d::Identity();  //!< first body pose's world; the last pose when not tracked
+  dsp::TrackingState state = dsp::TrackingState::kInitialising;
+  bool rejected = false;    //!< not used (wrong size or format)
+  dsp::TrackerTimes times;  //!< the tracker's stage times for this frame
+};
+
 struct DegradedCounters {
   std::uint64_t camera_lost = 0, camera_recovered = 0, imu_lost = 0, imu_recovered = 0;
   std::uint64_t imu_only_poses = 0;   //!< poses published from the IMU alone

@@ -78,4 +78,10 @@ class SetOnExit {
 /// Waits until `flag` is set or `timeout_ns` passed; true when it was set.
 bool wait_flag(const std::atomic<bool>& flag, DurationNs timeout_ns);
 
+/// A source module's one thread (null: never started): waits up to `timeout_ns` for `done`
+/// (or the thread's failure) and joins it; false if it is still running.
+bool join_source_thread(RtThread* thread, const std::atomic<bool>& done, DurationNs timeout_ns);
+/// The exception the thread ended with; null if none (or never started).
+std::exception_ptr source_thread_error(const RtThread* thread);
+
 }  // namespace wallar::firmware

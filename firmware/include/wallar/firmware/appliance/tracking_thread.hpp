@@ -57,6 +57,8 @@ struct TrackingThreadOptions {
   LogRing* log = nullptr;
   /// Test tooling (ApplianceOptions::before_frame): called before each frame; may be empty.
   std::function<void(TimeNs t_ns)> before_frame;
+  /// ApplianceOptions::on_frame_pose: called after each frame taken; may be empty.
+  std::function<void(const FramePose&)> on_frame_pose;
 };
 
 class TrackingThread {
