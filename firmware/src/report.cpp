@@ -163,6 +163,9 @@ WallModel walls_from_json(const nlohmann::json& j, const std::string& where) {
     throw_input_error(where, 0, "no \"surfaces\" array (expected the output of wallar walls)");
   }
   WallModel model;
+  // wallar's files say how the search ran ("2-D (...)": with down, so the kinds hold).
+  model.gravity_aligned = j.contains("mode") && j["mode"].is_string() &&
+                          j["mode"].get<std::string>().rfind("2-D", 0) == 0;
   std::size_t k = 0;
   for (const nlohmann::json& s : j["surfaces"]) {
     const std::string at = "surface " + std::to_string(k++);

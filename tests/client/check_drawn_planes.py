@@ -136,6 +136,9 @@ def main():
     drawn_set = sets[-1]
     f = fields(lines[last])
     assert int(f['planes']) == len(drawn_set), (f, drawn_set)
+    # Served while the run goes on, not only in the final fit: the floor and a wall by name (the
+    # reconstruction searches again once the attitude filter has gravity).
+    assert {'floor', 'wall'} <= {v[0] for v in drawn_set.values()}, ('drawn set', drawn_set)
     p, q = vec(f['p_world_view']), vec(f['q_world_view'])
     w, h, pixels = read_ppm(a.ppm)
     f_px = 0.5 * w / math.tan(math.radians(a.fov_deg) / 2)

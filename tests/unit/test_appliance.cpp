@@ -16,7 +16,9 @@
 #include <vector>
 
 #include "test_support.hpp"
+#include "wallar/dsp/walls/synthetic.hpp"
 #include "wallar/firmware/appliance.hpp"
+#include "wallar/firmware/appliance/reconstruction.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/hil/faults.hpp"
 #include "wallar/firmware/hil/replay_plan.hpp"
@@ -63,6 +65,38 @@ std::size_t count_kind(const dsp::RoomResult& room, SurfaceKind kind) {
   std::size_t n = 0;
   for (const Wall& w : room.model.walls) n += w.kind == kind ? 1 : 0;
   return n;
+}
+
+// The reconstruction searches again when down arrives, though the map did not grow: a still
+// head's first search ran before the attitude filter had gravity (3-D: every surface a wall,
+// the floor too) and its map may never grow by regrow_fraction to bring another (the sim
+// board's served model held two "walls", one of them the floor, until the run stopped).
+TEST(ApplianceReconstruction, DownArrivingMakesAnotherSearchOfAMapThatDidNotGrow) {
+  dsp::RoomSceneParams params;
+  const dsp::LabelledCloud scene = dsp::make_room_scene(params);
+  dsp::MapSnapshot map;
+  map.points = scene.cloud;
+  map.sigma_m.assign(map.points.size(), 0.01f);
+  map.keyframe_centres.push_back(Eigen::Vector3d::Zero());
+  map.keyframe_image_down.push_back(scene.down);
+  TripleBuffer<WallModel> out;
+  Reconstruction reconstruction(ReconstructionOptions{}, map.points.size(), out);
+  const auto floors = [&] {
+    std::size_t n = 0;
+    for (const Wall& w : out.front().walls) n += w.kind == SurfaceKind::kFloor ? 1 : 0;
+    return n;
+  };
+  ASSERT_TRUE(reconstruction.maybe_run(map, std::nullopt, 0, false));
+  ASSERT_TRUE(out.refresh());
+  EXPECT_FALSE(out.front().gravity_aligned);
+  EXPECT_EQ(floors(), 0u);                                              // 3-D: no floor by name
+  EXPECT_FALSE(reconstruction.maybe_run(map, std::nullopt, 0, false));  // nothing new
+  ASSERT_TRUE(reconstruction.maybe_run(map, scene.down, 0, false));     // down arrived
+  ASSERT_TRUE(out.refresh());
+  EXPECT_TRUE(out.front().gravity_aligned);
+  EXPECT_EQ(floors(), 1u);
+  EXPECT_EQ(reconstruction.gravity(), RoomGravity::kImu);
+  EXPECT_FALSE(reconstruction.maybe_run(map, scene.down, 0, false));  // and once only
 }
 
 // (a) Real time: every frame tracked, no IMU sample dropped, no deadline missed (the check only

@@ -54,6 +54,7 @@ WallModel room(std::uint64_t version) {
   WallModel m;
   m.version = version;
   m.t_ns = static_cast<TimeNs>(version) * kNsPerS;
+  m.gravity_aligned = true;  // found knowing down: the kinds hold
   // Floor 1.5 m below (n up, toward the viewer at the origin), a wall 2 m ahead along +x.
   m.walls.push_back(make_wall(1, SurfaceKind::kFloor, {0, 0, 1}, -1.5, 2.0, 2.0, 500));
   m.walls.push_back(make_wall(2, SurfaceKind::kWall, {-1, 0, 0}, -2.0, 1.5, 1.0, 300));
@@ -274,7 +275,7 @@ TEST(ClientWire, PlaneBatchesRoundTripAndDamagedOnesAreRefused) {
 TEST(ClientPlanes, OpenXrConventionsAndLabels) {
   const Eigen::Vector3d down(0, 0, -1);
   for (const Wall& w : room(1).walls) {
-    const cw::PlaneRecord r = plane_record(w, down);
+    const cw::PlaneRecord r = plane_record(w, down, true);
     const Eigen::Quaterniond q(r.q_world_plane_xyzw[3], r.q_world_plane_xyzw[0],
                                r.q_world_plane_xyzw[1], r.q_world_plane_xyzw[2]);
     // +z of the plane frame is the normal toward the viewer; the origin lies on the plane.
@@ -296,21 +297,43 @@ TEST(ClientPlanes, OpenXrConventionsAndLabels) {
       EXPECT_LT(best, 1e-9);
     }
   }
-  const cw::PlaneRecord floor = plane_record(room(1).walls[0], down);
+  const cw::PlaneRecord floor = plane_record(room(1).walls[0], down, true);
   EXPECT_EQ(floor.semantic, cw::Semantic::kFloor);
   EXPECT_EQ(floor.orientation, cw::Orientation::kHorizontalUpward);
   EXPECT_DOUBLE_EQ(floor.extent_m[0], 4.0);
-  const cw::PlaneRecord wall = plane_record(room(1).walls[1], down);
+  const cw::PlaneRecord wall = plane_record(room(1).walls[1], down, true);
   EXPECT_EQ(wall.semantic, cw::Semantic::kWall);
   EXPECT_EQ(wall.orientation, cw::Orientation::kVertical);
   const Wall ceiling = make_wall(3, SurfaceKind::kCeiling, {0, 0, -1}, -1.0, 1, 1);
-  EXPECT_EQ(plane_record(ceiling, down).orientation, cw::Orientation::kHorizontalDownward);
-  EXPECT_EQ(plane_record(ceiling, std::nullopt).semantic, cw::Semantic::kCeiling);
+  EXPECT_EQ(plane_record(ceiling, down, true).orientation, cw::Orientation::kHorizontalDownward);
+  EXPECT_EQ(plane_record(ceiling, std::nullopt, true).semantic, cw::Semantic::kCeiling);
   // A "wall" 30 degrees off vertical: arbitrary, label unknown.
   const Wall slanted =
       make_wall(4, SurfaceKind::kWall, {-std::cos(M_PI / 6), 0, std::sin(M_PI / 6)}, -2, 1, 1);
-  EXPECT_EQ(plane_record(slanted, down).orientation, cw::Orientation::kArbitrary);
-  EXPECT_EQ(plane_record(slanted, down).semantic, cw::Semantic::kUnknown);
+  EXPECT_EQ(plane_record(slanted, down, true).orientation, cw::Orientation::kArbitrary);
+  EXPECT_EQ(plane_record(slanted, down, true).semantic, cw::Semantic::kUnknown);
+}
+
+// A 3-D search (no down: before the attitude filter has gravity, or without an IMU on a rig
+// standing still) names every surface a wall, the floor too: such a model's planes say unknown,
+// and their orientation only what gravity, once known, says of the plane itself.
+TEST(ClientPlanes, AModelFoundWithoutDownGivesNoLabels) {
+  WallModel m = room(1);
+  m.gravity_aligned = false;
+  m.walls[0].kind = SurfaceKind::kWall;  // the floor, as a 3-D search names it
+  for (const Wall& w : m.walls) {
+    const cw::PlaneRecord r = plane_record(w, std::nullopt, false);
+    EXPECT_EQ(r.orientation, cw::Orientation::kArbitrary) << w.id;
+    EXPECT_EQ(r.semantic, cw::Semantic::kUnknown) << w.id;
+  }
+  const Eigen::Vector3d down(0, 0, -1);
+  const cw::PlaneRecord floor = plane_record(m.walls[0], down, false);
+  EXPECT_EQ(floor.orientation, cw::Orientation::kHorizontalUpward);
+  EXPECT_EQ(floor.semantic, cw::Semantic::kUnknown);
+  ClientPlanes planes;
+  const cw::PlaneBatch b = planes.update(m, std::nullopt);
+  ASSERT_EQ(b.planes.size(), 2u);
+  for (const auto& p : b.planes) EXPECT_EQ(p.semantic, cw::Semantic::kUnknown);
 }
 
 TEST(ClientPlanes, ChangesCountAndAMergeReportsSubsumedBy) {

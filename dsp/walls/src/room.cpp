@@ -213,6 +213,7 @@ RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& co
     result.model.walls.push_back(s.wall);
   }
   result.model.version = previous != nullptr ? previous->version + 1 : 1;
+  result.model.gravity_aligned = config.gravity.has_value();
   result.finish_ns = finish_ns + lap();
   return result;
 }

@@ -157,7 +157,8 @@ void SharedPosePublisher::on_imu(TimeNs t_ns, const Eigen::Vector3d& omega_body_
 
 // ---- planes --------------------------------------------------------------------------------
 
-cw::PlaneRecord plane_record(const Wall& w, const std::optional<Eigen::Vector3d>& down_world) {
+cw::PlaneRecord plane_record(const Wall& w, const std::optional<Eigen::Vector3d>& down_world,
+                             bool gravity_aligned) {
   cw::PlaneRecord r;
   r.id = w.id;
   const Eigen::Vector3d n = w.plane.n.normalized();
@@ -204,7 +205,9 @@ cw::PlaneRecord plane_record(const Wall& w, const std::optional<Eigen::Vector3d>
   r.q_world_plane_xyzw[2] = q.z();
   r.q_world_plane_xyzw[3] = q.w();
   for (int i = 0; i < 3; ++i) r.p_world_plane_m[i] = c[i];
-  // Orientation: against gravity when known (within 10 degrees), else the surface's kind.
+  // Orientation: against gravity when known (within 10 degrees), else the surface's kind when
+  // the search that found it knew down; a 3-D search's surfaces are of unknown orientation (its
+  // kWall is any plane: the floor too).
   if (down_world) {
     const double up = -n.dot(down_world->normalized());
     const double tol = std::sin(10.0 * kDegToRad);
@@ -217,10 +220,16 @@ cw::PlaneRecord plane_record(const Wall& w, const std::optional<Eigen::Vector3d>
     } else {
       r.orientation = cw::Orientation::kArbitrary;
     }
+  } else if (!gravity_aligned) {
+    r.orientation = cw::Orientation::kArbitrary;
   } else {
     r.orientation = w.kind == SurfaceKind::kFloor     ? cw::Orientation::kHorizontalUpward
                     : w.kind == SurfaceKind::kCeiling ? cw::Orientation::kHorizontalDownward
                                                       : cw::Orientation::kVertical;
+  }
+  if (!gravity_aligned) {
+    r.semantic = cw::Semantic::kUnknown;  // whatever its orientation now: the search did not know
+    return r;
   }
   switch (w.kind) {
     case SurfaceKind::kFloor:
@@ -257,7 +266,7 @@ cw::PlaneBatch ClientPlanes::update(const WallModel& model,
   batch.t_ns = t_ns_ = model.t_ns;
   std::map<std::uint32_t, Kept> next;
   for (const Wall& w : model.walls) {
-    cw::PlaneRecord r = plane_record(w, down_world);
+    cw::PlaneRecord r = plane_record(w, down_world, model.gravity_aligned);
     const auto old = planes_.find(w.id);
     if (old == planes_.end()) {
       r.change = cw::PlaneChange::kAdded;

@@ -44,9 +44,11 @@ bool Reconstruction::maybe_run(const dsp::MapSnapshot& map,
   const bool grown =
       last_points_ == 0 || static_cast<double>(n) >=
                                static_cast<double>(last_points_) * (1.0 + options_.regrow_fraction);
-  if (!grown && !(force && n != last_points_) && !(force && gravity != last_gravity_)) {
-    return false;
-  }
+  // Down arriving (the attitude filter's first gravity, or a path long enough) or going makes
+  // another search, grown or not: a 3-D search cannot tell the floor from a wall, and a still
+  // head's map may never grow by regrow_fraction to bring the next one.
+  const bool gravity_changed = runs_ > 0 && gravity != last_gravity_;
+  if (!grown && !gravity_changed && !(force && n != last_points_)) return false;
   dsp::local_map(map, options_.local_radius_m, local_);
   if (local_.points.size() < options_.min_map_points) return false;
   const double threshold =

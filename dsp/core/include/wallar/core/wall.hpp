@@ -70,6 +70,9 @@ inline constexpr std::array<std::uint8_t, 3> kNoSurfaceRgb{128, 128, 128};
 struct WallModel {
   TimeNs t_ns = 0;            //!< time of the map snapshot it was estimated from
   std::uint64_t version = 0;  //!< increments with each update
+  /// The search knew which way is down (2-D: gravity from the IMU or the path), so the kinds
+  /// say floor, ceiling and wall. Without it every surface is a kWall of unknown orientation.
+  bool gravity_aligned = false;
   std::vector<Wall> walls;
 };
 

@@ -94,9 +94,12 @@ class ClientPlanes {
   TimeNs t_ns_ = 0;
 };
 
-/// One wall as an API plane (change kAdded, change_count 0).
+/// One wall as an API plane (change kAdded, change_count 0). `gravity_aligned`: the wall's
+/// model was found knowing down (WallModel::gravity_aligned); without it the semantic is
+/// unknown, and so is the orientation unless `down_world` gives it.
 client_wire::PlaneRecord plane_record(const Wall& wall,
-                                      const std::optional<Eigen::Vector3d>& down_world);
+                                      const std::optional<Eigen::Vector3d>& down_world,
+                                      bool gravity_aligned);
 /// Whether `absorbed` lies on `survivor` (the merge rule of ClientPlanes).
 bool subsumes(const Wall& survivor, const Wall& absorbed);
 

@@ -75,10 +75,11 @@ class Reconstruction {
   }
   static constexpr std::size_t kMaxMoreOuts = 2;
 
-  /// Runs when the map grew enough since the last run (or `force`: whenever the map or the
-  /// gravity mode changed); returns whether it ran. A new `epoch` (a reset) forgets the last
-  /// model. `imu_down` is gravity from the IMU in the map's frame; without it, the key-frames'
-  /// path gives it when it runs over the ground (dsp::down_from_path), else the search is 3-D.
+  /// Runs when the map grew enough since the last run or the gravity mode changed (down arrived
+  /// or went), or with `force` whenever the map changed; returns whether it ran. A new `epoch` (a
+  /// reset) forgets the last model. `imu_down` is gravity from the IMU in the map's frame; without
+  /// it, the key-frames' path gives it when it runs over the ground (dsp::down_from_path), else the
+  /// search is 3-D.
   bool maybe_run(const dsp::MapSnapshot& map, const std::optional<Eigen::Vector3d>& imu_down,
                  std::uint32_t epoch, bool force);
 
