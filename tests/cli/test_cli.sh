@@ -503,18 +503,23 @@ import json, os, sys
 a, b = (json.load(open(p)) for p in sys.argv[1:3])
 c = b['client']
 assert c['accepted'] == 2 and c['refused'] == 1 and c['malformed'] >= 5, c
+# Under an emulator (qemu's TCG, beside other tests) tracking is slower than the camera with or
+# without clients (1 and 15 of 160-194 frames skipped as stale in two aarch64 runs): the timing
+# says nothing of the clients there, so only the native run compares it.
+emulated = bool(os.environ.get('WALLAR_EMULATOR'))
 for run in (a, b):
-    # A frame delivered as --duration stops the run may go untracked; none overwritten, except
-    # under an emulator, where tracking is slower than the camera with or without clients (one
-    # of 194 frames in a qemu-aarch64 run).
+    # Every frame tracked or skipped as stale (counted); one delivered as --duration stops the
+    # run may go untracked. Natively none is skipped.
     f = run['frames']
-    skipped_ok = f['in'] // 50 if os.environ.get('WALLAR_EMULATOR') else 0
-    assert f['overwritten'] <= skipped_ok and f['tracked'] >= f['in'] - 1 - f['overwritten'], f
+    assert f['tracked'] + f['overwritten'] >= f['in'] - 1, f
+    assert emulated or f['overwritten'] == 0, f
 st = lambda r: {s['name']: s for s in r['stages']}
 sa, sb = st(a), st(b)
 for name in ('imu -> filter', 'capture -> tracking', 'tracking'):
     pa, pb = sa[name]['p50_ms'], sb[name]['p50_ms']
     print(f'{name}: p50 {pa:.2f} -> {pb:.2f} ms, p99 {sa[name]["p99_ms"]:.2f} -> {sb[name]["p99_ms"]:.2f} ms')
+    if emulated:
+        continue
     assert pb <= 1.5 * pa + 3.0, (name, pa, pb)
     assert sb[name]['p99_ms'] <= 2.0 * sa[name]['p99_ms'] + 20.0, (name, sa[name], sb[name])
 # The client API's writer on the tracking thread allocates nothing (the wallar binary counts).
