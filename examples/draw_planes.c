@@ -296,7 +296,11 @@ int main(int argc, char** argv) {
   int64_t next_ns = start_ns;
   for (;;) {
     int64_t now_ns = example_monotonic_ns();
-    if (now_ns >= end_ns) break;
+    if (now_ns >= end_ns) {
+      /* Refreshes before the end that came while the app was busy elsewhere were skipped. */
+      if (next_ns < end_ns) missed += (int)((end_ns - 1 - next_ns) / period_ns + 1);
+      break;
+    }
     if (now_ns >= next_ns) {
       /* A display frame: the eye's pose at its display time, in the sensors' clock. */
       const int64_t t_display_ns = wallar_client_now_ns(c) + (int64_t)(ahead_ms * 1e6);
@@ -341,12 +345,14 @@ int main(int argc, char** argv) {
         if (draw_ms > draw_ms_max) draw_ms_max = draw_ms;
       }
       ++frames;
-      /* A display skips the refreshes it was too late for. */
+      /* A display skips the refreshes it was too late for; those after the run's end (a
+       * last frame that took long) are not the run's. */
       next_ns += period_ns;
       now_ns = example_monotonic_ns();
       if (next_ns <= now_ns) {
         const int64_t late = (now_ns - next_ns) / period_ns + 1;
-        missed += (int)late;
+        const int64_t last_ns = (now_ns < end_ns ? now_ns : end_ns - 1);
+        if (next_ns <= last_ns) missed += (int)((last_ns - next_ns) / period_ns + 1);
         next_ns += late * period_ns;
       }
     }
