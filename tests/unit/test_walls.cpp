@@ -405,7 +405,7 @@ TEST(Room, BandCountsAndTheExcessOfAPlanesBandOverItsNeighbours) {
 
 TEST(SparseMapFamily, ScenesVaryAsDeclaredAndTheirPlanesAndGravityTurnWithTheTilt) {
   std::set<std::size_t> clusters;
-  int cabinets = 0;
+  int cabinets = 0, corners = 0;
   for (std::uint64_t seed = 1; seed <= 40; ++seed) {
     const SparseMapParams p = sparse_map_family(seed);
     EXPECT_EQ(p.seed, seed);
@@ -413,13 +413,37 @@ TEST(SparseMapFamily, ScenesVaryAsDeclaredAndTheirPlanesAndGravityTurnWithTheTil
     EXPECT_LT(p.wall_fraction, 0.10);
     EXPECT_GE(p.tilt_deg, 0.0);
     EXPECT_LT(p.tilt_deg, 20.0);
+    EXPECT_GE(p.wall_distance_m, 2.5);
+    EXPECT_LT(p.wall_distance_m, 4.5);
     clusters.insert(p.clutter_clusters);
     cabinets += p.front_plane_points > 0;
+    const bool corner = p.side_wall_fraction > 0.0;
+    corners += corner;
+    if (corner) {
+      EXPECT_GE(p.side_wall_fraction, 0.02);
+      EXPECT_LT(p.side_wall_fraction, 0.10);
+      EXPECT_LE(p.yaw_deg, -15.0) << "turned toward the corner";
+      EXPECT_GT(p.yaw_deg, -35.0);
+    } else {
+      EXPECT_GE(p.yaw_deg, -20.0);
+      EXPECT_LT(p.yaw_deg, 20.0);
+    }
     const auto scene = make_sparse_map(p);
     ASSERT_EQ(scene.cloud.size(), p.points);
-    ASSERT_EQ(scene.surfaces.size(), p.front_plane_points > 0 ? 2u : 1u);
+    ASSERT_EQ(scene.surfaces.size(), 1u + (p.front_plane_points > 0) + corner);
+    ASSERT_EQ(scene.all_walls.size(), corner ? 2u : 1u);
+    EXPECT_EQ(scene.all_walls[0].n, scene.wall.n);
     EXPECT_NEAR(scene.down.norm(), 1.0, 1e-12);
-    EXPECT_NEAR(scene.wall.n.dot(scene.down), 0.0, 1e-12) << "the wall stays vertical";
+    for (const Plane& wall : scene.all_walls) {
+      EXPECT_NEAR(wall.n.dot(scene.down), 0.0, 1e-12) << "the walls stay vertical";
+    }
+    // Undo the tilt: the yaw turned the wall's normal -z about y.
+    const Eigen::Vector3d n_level =
+        Eigen::AngleAxisd(-p.tilt_deg * M_PI / 180.0, Eigen::Vector3d::UnitX()) * scene.wall.n;
+    const double yaw_rad = p.yaw_deg * M_PI / 180.0;
+    EXPECT_NEAR(n_level.x(), -std::sin(yaw_rad), 1e-9);
+    EXPECT_NEAR(n_level.z(), -std::cos(yaw_rad), 1e-9);
+    std::size_t side_points = 0;
     EXPECT_NEAR(std::acos(scene.down.dot(Eigen::Vector3d::UnitY())) * 180.0 / M_PI, p.tilt_deg,
                 1e-9);
     for (std::size_t i = 0; i < scene.cloud.size(); ++i) {
@@ -428,12 +452,21 @@ TEST(SparseMapFamily, ScenesVaryAsDeclaredAndTheirPlanesAndGravityTurnWithTheTil
         EXPECT_LT(std::abs(scene.wall.signed_distance(q)), 0.5 * p.noise_m + 1e-5);
       } else if (scene.labels[i] == PointLabel::kFrontPlane) {
         EXPECT_LT(std::abs(scene.surfaces[1].signed_distance(q)), 0.5 * p.noise_m + 1e-5);
+      } else if (scene.labels[i] == PointLabel::kOtherWall) {
+        ++side_points;
+        EXPECT_LT(std::abs(scene.all_walls[1].signed_distance(q)), 0.5 * p.noise_m + 1e-5);
+        EXPECT_GT(scene.wall.signed_distance(q), -1e-5)
+            << "the side wall ends at the wall's corner, on the viewer's side";
       }
     }
+    EXPECT_EQ(static_cast<double>(side_points),
+              std::round(p.side_wall_fraction * static_cast<double>(p.points)));
   }
   EXPECT_GT(clusters.size(), 3u) << "uniform clutter and several clump counts";
   EXPECT_GT(cabinets, 10);
   EXPECT_LT(cabinets, 30);
+  EXPECT_GT(corners, 10);
+  EXPECT_LT(corners, 30);
   // The default scene has none of the variations (GoldenWalls pins its detections).
   const auto base = make_sparse_map({});
   for (const PointLabel label : base.labels) {

@@ -160,6 +160,14 @@ LabelledCloud make_sparse_map(const SparseMapParams& p) {
     const double x = s.uniform(-0.5, 0.5);
     s.add(x, y, z, PointLabel::kFrontPlane);
   }
+  const auto side = static_cast<std::size_t>(
+      std::lround(std::clamp(p.side_wall_fraction, 0.0, 0.5) * static_cast<double>(p.points)));
+  for (std::size_t i = 0; i < side && s.out.cloud.size() < p.points; ++i) {
+    const double z = s.uniform(0.5, p.wall_distance_m);  // z, y, x: see add()
+    const double y = s.uniform(-1.5, 1.5);
+    const double x = 2.0 + s.uniform(-half, half);
+    s.add(x, y, z, PointLabel::kOtherWall);
+  }
   std::vector<Eigen::Vector3d> centres;
   for (std::size_t k = 0; k < p.clutter_clusters; ++k) {
     const double z = s.uniform(0.8, p.wall_distance_m - 0.3);  // z, y, x: see add()
@@ -192,10 +200,18 @@ LabelledCloud make_sparse_map(const SparseMapParams& p) {
   }
   s.out.wall = Plane{-Eigen::Vector3d::UnitZ(), -p.wall_distance_m};
   s.out.surfaces.push_back(s.out.wall);
+  s.out.all_walls.push_back(s.out.wall);
   if (p.front_plane_points > 0) s.out.surfaces.push_back({-Eigen::Vector3d::UnitZ(), -cabinet_z});
-  if (p.tilt_deg != 0.0) {
+  if (side > 0) {
+    s.out.surfaces.push_back({-Eigen::Vector3d::UnitX(), -2.0});
+    s.out.all_walls.push_back(s.out.surfaces.back());
+  }
+  if (p.tilt_deg != 0.0 || p.yaw_deg != 0.0) {
+    // About the origin (the viewpoint): the planes' d stays.
     const Eigen::Matrix3d R =
-        Eigen::AngleAxisd(p.tilt_deg * M_PI / 180.0, Eigen::Vector3d::UnitX()).toRotationMatrix();
+        (Eigen::AngleAxisd(p.tilt_deg * M_PI / 180.0, Eigen::Vector3d::UnitX()) *
+         Eigen::AngleAxisd(p.yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()))
+            .toRotationMatrix();
     PointCloud& c = s.out.cloud;
     for (std::size_t i = 0; i < c.size(); ++i) {
       const Eigen::Vector3d q = R * Eigen::Vector3d(c.x[i], c.y[i], c.z[i]);
@@ -203,8 +219,9 @@ LabelledCloud make_sparse_map(const SparseMapParams& p) {
       c.y[i] = static_cast<float>(q.y());
       c.z[i] = static_cast<float>(q.z());
     }
-    s.out.wall.n = R * s.out.wall.n;  // about the origin: d stays
+    s.out.wall.n = R * s.out.wall.n;
     for (Plane& plane : s.out.surfaces) plane.n = R * plane.n;
+    for (Plane& plane : s.out.all_walls) plane.n = R * plane.n;
     s.out.down = R * s.out.down;
   }
   return std::move(s.out);
@@ -219,6 +236,10 @@ SparseMapParams sparse_map_family(std::uint64_t seed) {
   p.front_plane_points = s.uniform(0.0, 1.0) < 0.5 ? 60 : 0;
   p.clutter_clusters =
       s.uniform(0.0, 1.0) < 0.5 ? 0 : static_cast<std::size_t>(s.uniform(4.0, 13.0));
+  p.wall_distance_m = s.uniform(2.5, 4.5);
+  const bool corner = s.uniform(0.0, 1.0) < 0.5;
+  p.side_wall_fraction = corner ? s.uniform(0.02, 0.10) : 0.0;
+  p.yaw_deg = corner ? -s.uniform(15.0, 35.0) : s.uniform(-20.0, 20.0);
   return p;
 }
 

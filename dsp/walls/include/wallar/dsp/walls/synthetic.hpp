@@ -25,7 +25,7 @@ enum class PointLabel : std::uint8_t {
   kOutlier,     //!< anywhere in front of the wall
   kFloor,
   kCeiling,
-  kOtherWall,  //!< room scenes: the walls other than the first
+  kOtherWall,  //!< room scenes: the walls other than the first; sparse maps: the side wall
   kWindow,     //!< seen through a window in the wall: a patch of backliers
   kClutter,    //!< furniture in front of the wall (boxes)
 };
@@ -36,9 +36,10 @@ const char* label_name(PointLabel label);
 struct LabelledCloud {
   PointCloud cloud;
   std::vector<PointLabel> labels;
-  Plane wall;                   //!< ground truth of the wall to find (n toward the viewpoint)
-  std::vector<Plane> surfaces;  //!< room scenes: every surface, in label order; sparse maps:
-                                //!< the wall, then the front plane if any
+  Plane wall;                    //!< ground truth of the wall to find (n toward the viewpoint)
+  std::vector<Plane> surfaces;   //!< room scenes: every surface, in label order; sparse maps:
+                                 //!< the wall, then the front plane and the side wall if any
+  std::vector<Plane> all_walls;  //!< sparse maps: the walls to find (the wall, the side wall)
   Eigen::Vector3d down = Eigen::Vector3d::UnitY();  //!< gravity's direction in the cloud
 };
 
@@ -92,12 +93,20 @@ struct SparseMapParams {
   /// The whole scene pitched about x by this angle (a camera looking down): the points, the
   /// true planes and `down` turn together.
   double tilt_deg = 0.0;
+  /// A second wall: this share of the points on the room's right side (x = +2 m, from 0.5 m to
+  /// the wall, full height), meeting the wall in a corner (labelled kOtherWall).
+  double side_wall_fraction = 0.0;
+  /// The scene turned about the vertical (before the tilt) by this angle: negative turns the
+  /// camera toward the right-hand corner, so that the side wall faces it.
+  double yaw_deg = 0.0;
 };
 LabelledCloud make_sparse_map(const SparseMapParams& p);
 
 /// One scene of the family the wall benchmark samples at random from `seed` (issue 22): 2,000
-/// points, a wall of 2 - 10 % of them, tilted 0 - 20 degrees, with a cabinet in front of the
-/// wall in half of the scenes and clutter in clumps in half.
+/// points, a wall of 2 - 10 % of them at 2.5 - 4.5 m (the clutter's density varies with the
+/// room's depth), tilted 0 - 20 degrees, with a cabinet in front of the wall in half of the
+/// scenes, clutter in clumps in half, and in half a second wall (2 - 10 %) in a corner with the
+/// first, the camera turned 15 - 35 degrees toward it (else turned -20 - 20 degrees).
 SparseMapParams sparse_map_family(std::uint64_t seed);
 
 /// A box room (x in [-w/2, w/2], y from ceiling -h_up to floor +h_down, z in [-d/2, d/2])
