@@ -12,10 +12,12 @@
 ///    0.1 m of the scene's wall) and mean_rounds.
 ///  - walls/room_{3d,2d}/family: what `wallar walls` runs (dsp::RoomEstimator with the
 ///    command's defaults: threshold 5 cm, up to 6 surfaces) on kSeeds scenes drawn at random
-///    from dsp::sparse_map_family (wall fraction 2 - 10 %, tilt 0 - 20 deg, a cabinet in half,
-///    clumped clutter in half); counters success_pct (the true wall among the surfaces),
-///    spurious_per_scene (surfaces on no true plane) and mean_surfaces; .../surface_sigma_4:
-///    the same with the opt-in band test (`wallar walls --surface-sigma 4`).
+///    from dsp::sparse_map_family (seeds from --family-seed; wall fraction 2 - 10 %, tilt
+///    0 - 20 deg, a cabinet in half, clumped clutter in half, a second wall in a corner in
+///    half); counters success_pct (every wall of the scene among the surfaces),
+///    spurious_per_scene (surfaces on no true plane), mean_surfaces and median_ms, p90_ms,
+///    max_ms (each scene's time); .../surface_sigma_4: the same with the opt-in band test
+///    (`wallar walls --surface-sigma 4`); .../contrast: with `--method contrast`.
 ///  - `wallar bench imu`: imu/attitude_update{,_mag}: one dsp::AttitudeFilter::update() on a
 ///    200 Hz stream of a turning body (target: under 1 us).
 ///  - `wallar bench track`: the tracker and mapper (bench_track.cpp).
@@ -55,6 +57,7 @@ struct BenchArgs {
   std::string json;
   std::vector<std::string> passthrough;
   std::string recording = "tests/data/euroc_v1_01_still";
+  std::uint64_t family_seed = 1;  //!< the room benchmarks' first scene of the family
 };
 
 #if WALLAR_HAVE_BENCHMARK
@@ -178,10 +181,12 @@ void bm_detect(benchmark::State& state, bool two_d, dsp::Sampling sampling) {
 
 // ---- (d) the walls command over the scene family -------------------------------------------
 
+std::uint64_t g_family_seed = 1;  // set before the benchmarks run (--family-seed)
+
 const std::vector<dsp::LabelledCloud>& family_maps() {
   static const std::vector<dsp::LabelledCloud> scenes = [] {
     std::vector<dsp::LabelledCloud> s;
-    for (std::uint64_t seed = 1; seed <= kSeeds; ++seed) {
+    for (std::uint64_t seed = g_family_seed; seed < g_family_seed + kSeeds; ++seed) {
       s.push_back(dsp::make_sparse_map(dsp::sparse_map_family(seed)));
     }
     return s;
@@ -191,24 +196,34 @@ const std::vector<dsp::LabelledCloud>& family_maps() {
 
 // One iteration = one `wallar walls` estimate of scene i % kSeeds (its points loaded, every
 // surface searched, then the search that finds none).
-void bm_room(benchmark::State& state, bool two_d, double surface_sigma) {
+void bm_room(benchmark::State& state, bool two_d, double surface_sigma, bool contrast) {
   const auto& scenes = family_maps();
   std::size_t most = 0;
   for (const auto& sc : scenes) most = std::max(most, sc.cloud.size());
   dsp::RoomEstimator room(most);
   std::uint64_t found = 0, spurious = 0, surfaces = 0, i = 0;
+  std::vector<double> scene_ms;  // each estimate's wall time: the target is the median
+  scene_ms.reserve(static_cast<std::size_t>(state.max_iterations));
   for (auto _ : state) {
     const auto s = static_cast<std::size_t>(i++ % kSeeds);
     dsp::RoomConfig cfg;  // the walls command's defaults
     cfg.detector.threshold_m = 0.05;
     cfg.detector.seed = s + 1;
     cfg.min_excess_sigma = surface_sigma;
+    if (contrast) cfg.detector.method = dsp::ScoreMethod::kContrast;
     if (two_d) cfg.gravity = 9.81 * scenes[s].down;
+    const TimeNs t0_ns = monotonic_now_ns();
     const dsp::RoomResult r = room.estimate(scenes[s].cloud, cfg);
+    scene_ms.push_back(static_cast<double>(monotonic_now_ns() - t0_ns) * 1e-6);
     benchmark::DoNotOptimize(r);
-    bool wall = false;
+    // Success: every wall of the scene found (the wall, and the side wall where there is one).
+    bool wall = true;
+    for (const Plane& truth : scenes[s].all_walls) {
+      bool seen = false;
+      for (const Wall& w : r.model.walls) seen |= same_plane(w.plane, truth);
+      wall &= seen;
+    }
     for (const Wall& w : r.model.walls) {
-      wall |= same_plane(w.plane, scenes[s].wall);
       bool on_truth = false;
       for (const Plane& t : scenes[s].surfaces) on_truth |= same_plane(w.plane, t);
       spurious += on_truth ? 0 : 1;
@@ -218,6 +233,12 @@ void bm_room(benchmark::State& state, bool two_d, double surface_sigma) {
   }
   const auto n = static_cast<double>(std::max<std::uint64_t>(i, 1));
   state.counters["success_pct"] = 100.0 * static_cast<double>(found) / n;
+  if (!scene_ms.empty()) {
+    std::sort(scene_ms.begin(), scene_ms.end());
+    state.counters["median_ms"] = scene_ms[scene_ms.size() / 2];
+    state.counters["p90_ms"] = scene_ms[scene_ms.size() * 9 / 10];
+    state.counters["max_ms"] = scene_ms.back();
+  }
   state.counters["spurious_per_scene"] = static_cast<double>(spurious) / n;
   state.counters["mean_surfaces"] = static_cast<double>(surfaces) / n;
   state.counters["scenes"] = static_cast<double>(std::min<std::uint64_t>(i, kSeeds));
@@ -256,13 +277,20 @@ void register_wall_benchmarks() {
         ->Iterations(c.iterations)
         ->Unit(benchmark::kMicrosecond);
   }
-  for (const double sigma : {0.0, 4.0}) {
+  // The defaults (BSF), BSF with the band test, and the contrast score.
+  struct Variant {
+    const char* suffix;
+    double sigma;
+    bool contrast;
+  };
+  for (const Variant v : {Variant{"", 0.0, false}, Variant{"/surface_sigma_4", 4.0, false},
+                          Variant{"/contrast", 0.0, true}}) {
     for (const bool two_d : {false, true}) {
       const std::string name =
-          std::string(two_d ? "walls/room_2d/family" : "walls/room_3d/family") +
-          (sigma > 0.0 ? "/surface_sigma_4" : "");
+          std::string(two_d ? "walls/room_2d/family" : "walls/room_3d/family") + v.suffix;
       benchmark::RegisterBenchmark(
-          name.c_str(), [two_d, sigma](benchmark::State& st) { bm_room(st, two_d, sigma); })
+          name.c_str(),
+          [two_d, v](benchmark::State& st) { bm_room(st, two_d, v.sigma, v.contrast); })
           ->Iterations(kSeeds)
           ->Unit(benchmark::kMicrosecond);
     }
@@ -366,6 +394,7 @@ int run_bench(const BenchArgs& args, const std::string& name, void (*register_ca
 }
 
 int run_bench_walls(const BenchArgs& args) {
+  g_family_seed = args.family_seed;
   return run_bench(args, "walls", register_wall_benchmarks);
 }
 int run_bench_imu(const BenchArgs& args) { return run_bench(args, "imu", register_imu_benchmarks); }
@@ -414,6 +443,11 @@ void add_bench_command(CLI::App& app, std::function<int()>& run) {
                    "Also write the results as JSON to FILE (--benchmark_out=FILE "
                    "--benchmark_out_format=json)")
       ->option_text("FILE");
+  walls
+      ->add_option("--family-seed", args->family_seed,
+                   "First of the 50 scenes of the family the walls/room benchmarks draw (another "
+                   "value: scenes the defaults were not chosen on)")
+      ->capture_default_str();
   walls->add_option("benchmark_flags", args->passthrough,
                     "Google Benchmark flags, after --, e.g. -- --benchmark_filter=kernel");
   walls->callback([args, &run] { run = [args] { return run_bench_walls(*args); }; });

@@ -47,7 +47,7 @@ struct RunArgs {
   int loops = -1;  // -1: the board's replay.loop
   double duration_s = 0.0;
   std::vector<std::string> faults;
-  std::string method = "bsf";
+  std::string method = score_method_name(dsp::RoomConfig{}.detector.method);
   std::uint64_t seed = 1;
   std::string keys;
   std::string live;    // [ADDRESS:]PORT
@@ -387,7 +387,8 @@ void add_run_command(CLI::App& app, std::function<int()>& run) {
                   "(render-hang@T+D); seconds from "
                   "the start; repeatable");
   cmd->add_option("--method", args->method,
-                  "Wall search score: ransac, msac, bsf (BSF-RANSAC) or binomial (B-RANSAC)")
+                  "Wall search score: ransac, msac, bsf (BSF-RANSAC), binomial (B-RANSAC) or "
+                  "contrast (BSF on the band's contrast)")
       ->check(CLI::IsMember(kScoreMethodNames))
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Seed of the wall search")->capture_default_str();

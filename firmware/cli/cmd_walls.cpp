@@ -19,7 +19,7 @@ namespace {
 
 struct WallsArgs {
   std::string input;
-  std::string method = "bsf";
+  std::string method = score_method_name(dsp::RoomConfig{}.detector.method);
   std::string sampling = "guided";
   double beta = 0.5;
   double rho = -1.0;
@@ -29,7 +29,7 @@ struct WallsArgs {
   std::string view_dir = "0,0,1";
   int max_walls = 6;
   double confidence = 0.99;
-  std::uint32_t max_rounds = 200'000;
+  std::uint32_t max_rounds = dsp::RoomConfig{}.detector.max_rounds;
   std::uint64_t seed = 1;
   bool manhattan = false;
   double surface_sigma = dsp::RoomConfig{}.min_excess_sigma;
@@ -153,7 +153,8 @@ void add_walls_command(CLI::App& app, std::function<int()>& run) {
       ->required()
       ->check(CLI::ExistingFile);
   cmd->add_option("--method", a->method,
-                  "Score: ransac, msac, bsf (BSF-RANSAC) or binomial (B-RANSAC)")
+                  "Score: ransac, msac, bsf (BSF-RANSAC), binomial (B-RANSAC) or contrast (BSF "
+                  "on the band's contrast: its inner half less half its outer half)")
       ->check(CLI::IsMember(kScoreMethodNames))
       ->capture_default_str();
   cmd->add_option("--sampling", a->sampling, "uniform or guided (neighbourhood) sampling")

@@ -73,14 +73,34 @@ struct ReplayFlags {
 };
 void add_replay_flags(CLI::App& cmd, ReplayFlags& flags);
 
-/// The wall search's score by its command-line name: ransac, msac, bsf (BSF-RANSAC) or
-/// binomial (B-RANSAC); options check the name with kScoreMethodNames.
-inline const std::vector<std::string> kScoreMethodNames{"ransac", "msac", "bsf", "binomial"};
+/// The wall search's score by its command-line name: ransac, msac, bsf (BSF-RANSAC), binomial
+/// (B-RANSAC) or contrast (BSF on the band's contrast, for clouds whose noise is well within
+/// the threshold); options
+/// check the name with kScoreMethodNames.
+inline const std::vector<std::string> kScoreMethodNames{"ransac", "msac", "bsf", "binomial",
+                                                        "contrast"};
 inline dsp::ScoreMethod score_method_named(const std::string& m) {
   if (m == "ransac") return dsp::ScoreMethod::kRansac;
   if (m == "msac") return dsp::ScoreMethod::kMsac;
   if (m == "bsf") return dsp::ScoreMethod::kBsf;
+  if (m == "contrast") return dsp::ScoreMethod::kContrast;
   return dsp::ScoreMethod::kBinomial;
+}
+/// The command-line name of a score method (the inverse of score_method_named).
+inline const char* score_method_name(dsp::ScoreMethod m) {
+  switch (m) {
+    case dsp::ScoreMethod::kRansac:
+      return "ransac";
+    case dsp::ScoreMethod::kMsac:
+      return "msac";
+    case dsp::ScoreMethod::kBsf:
+      return "bsf";
+    case dsp::ScoreMethod::kBinomial:
+      return "binomial";
+    case dsp::ScoreMethod::kContrast:
+      return "contrast";
+  }
+  return "?";
 }
 
 }  // namespace wallar::cli

@@ -789,8 +789,8 @@ PY
   expect_out "time: search 1 "
   head -c 200 "$tmp/room.ply" | grep -q "element vertex 900" || fail "ply header"
   # Scattered points are not a surface: 1,400 uniform in a box, one 4 x 3 m wall of 120 behind
-  # them. With the band test (--surface-sigma 4) the wall is reported alone; without it (the
-  # default), slabs of the scatter are reported as walls too.
+  # them. By the contrast score the wall is reported alone; by BSF (the default), slabs of the
+  # scatter are reported as walls too, unless the band test (--surface-sigma 4) rejects them.
   python3 - "$tmp/scatter.csv" <<'PY'
 import random, sys
 random.seed(7)
@@ -799,10 +799,12 @@ with open(sys.argv[1], 'w') as f:
     for _ in range(120): f.write(f'{u(-2,2)},{u(-1.5,1.5)},{3+u(-.01,.01)}\n')
     for _ in range(1400): f.write(f'{u(-2,2)},{u(-1.5,1.5)},{u(0.5,2.95)}\n')
 PY
+  run walls "$tmp/scatter.csv" --method contrast --json -; expect_rc 0
+  [ "$(json "len(d['surfaces']), round(d['surfaces'][0]['d'], 1), d['stages']['searches'][-1]['outcome']")" = "1 -3.0 too small" ] || fail "scatter: $(json "[(s['d'], s['inliers']) for s in d['surfaces']]")"
   run walls "$tmp/scatter.csv" --surface-sigma 4 --json -; expect_rc 0
-  [ "$(json "len(d['surfaces']), d['stages']['searches'][-1]['outcome']")" = "1 not a surface" ] || fail "scatter: $(json "[(s['d'], s['inliers']) for s in d['surfaces']]")"
+  [ "$(json "len(d['surfaces']), d['stages']['searches'][-1]['outcome']")" = "1 not a surface" ] || fail "scatter by BSF with the band test: $(json "[(s['d'], s['inliers']) for s in d['surfaces']]")"
   run walls "$tmp/scatter.csv" --json -; expect_rc 0
-  [ "$(json "len(d['surfaces']) > 2")" = True ] || fail "scatter without the band test: $(json "len(d['surfaces'])")"
+  [ "$(json "len(d['surfaces']) > 2")" = True ] || fail "scatter by BSF without the band test: $(json "len(d['surfaces'])")"
   ;;
 walls_bad_input)
   : >"$tmp/empty.ply"

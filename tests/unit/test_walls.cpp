@@ -46,21 +46,27 @@ TEST(PlaneKernel, SimdMatchesScalarOnRandomClouds) {
     EXPECT_EQ(a.inliers, b.inliers) << n << " points, target " << plane_kernel_target();
     EXPECT_EQ(a.backliers, b.backliers);
     EXPECT_NEAR(a.inlier_sq_sum, b.inlier_sq_sum, 1e-4f * b.inlier_sq_sum + 1e-6f);
+    EXPECT_EQ(a.inner, b.inner);
     EXPECT_GT(a.inliers, 0u);
+    if (n >= 1024) {
+      EXPECT_GT(a.inner, 0u);
+      EXPECT_LT(a.inner, a.inliers);
+    }
     EXPECT_GT(a.backliers, 0u);
   }
 }
 
 TEST(PlaneKernel, CountsInliersAndBackliersOfAHandBuiltCloud) {
-  // Plane z = 2 seen from the origin: n = -z, d = -2. Points at z = 1.5 (front), 1.98 and 2.03
-  // (inliers at t = 0.05), 2.5 and 3 (behind), and NaN padding.
+  // Plane z = 2 seen from the origin: n = -z, d = -2. Points at z = 1.5 and 1.9 (front), 1.98
+  // and 2.03 (inliers at t = 0.05), 2.12, 2.5 and 3 (behind), and NaN padding.
   std::vector<float> x(16, 0.0f), y(16, 0.0f), z(16, std::nanf(""));
-  const float zs[] = {1.5f, 1.98f, 2.03f, 2.5f, 3.0f};
+  const float zs[] = {1.5f, 1.9f, 1.98f, 2.03f, 2.12f, 2.5f, 3.0f};
   std::copy(std::begin(zs), std::end(zs), z.begin());
   const PlaneCounts c = score_plane(x.data(), y.data(), z.data(), 16, 0, 0, -1, -2, 0.05f);
   EXPECT_EQ(c.inliers, 2u);
-  EXPECT_EQ(c.backliers, 2u);
+  EXPECT_EQ(c.backliers, 3u);
   EXPECT_NEAR(c.inlier_sq_sum, 0.02f * 0.02f + 0.03f * 0.03f, 1e-6f);
+  EXPECT_EQ(c.inner, 1u) << "1.98 is within t/2 of the plane, 2.03 is not";
 }
 
 TEST(Scores, BinomialLogScoreIsTheLogOfEq34) {
@@ -132,6 +138,90 @@ TEST(Scores, EachScoreOnAHandBuiltCloud) {
     EXPECT_TRUE(is_plane(d.plane, wall));
     EXPECT_NEAR(d.score, binomial_log_score(40, 30, 30.0 / 70.0), 1e-9);
   }
+}
+
+TEST(Scores, ContrastScoresASurfaceByItsPointsAndASlabThroughScatteredPointsByLittle) {
+  // 4,000 points scattered through a box (z 1 - 3 m) and a wall of 100 points at z = 3.5 m.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  PointCloud cloud;
+  for (int i = 0; i < 4000; ++i) cloud.push_back({u(rng), u(rng), 2.0f + u(rng)});
+  for (int i = 0; i < 100; ++i) cloud.push_back({u(rng), u(rng), 3.5f + 0.01f * u(rng)});
+  DetectorConfig cfg;
+  cfg.threshold_m = 0.05;
+  cfg.beta = 0.0;  // the band alone: what lies behind does not count here
+  cfg.max_rounds = 0;
+  cfg.local_optimisation_iterations = 0;
+  const auto detect_from = [&](ScoreMethod method, const Plane& plane) {
+    cfg.method = method;
+    WallDetector det(cloud.size(), cfg);
+    det.set_points(cloud);
+    const Detection d = det.detect_3d(std::span<const Plane>(&plane, 1));
+    EXPECT_TRUE(d.found);
+    return d;
+  };
+  const Plane slab{-Eigen::Vector3d::UnitZ(), -2.0};
+  const Plane wall{-Eigen::Vector3d::UnitZ(), -3.5};
+  // Inliers: about 4,000 * 0.1 / 2 = 200 in the slab, the 100 on the wall.
+  const Detection slab_ransac = detect_from(ScoreMethod::kRansac, slab);
+  EXPECT_GT(slab_ransac.score, 150.0) << "by its inlier count the slab beats the wall";
+  // A slab through scattered points has as many points in its outer half as in its inner one:
+  // with outer_weight 1, inner - outer is zero give or take sqrt(inliers); with the default
+  // 0.5, a quarter of its inliers.
+  const double default_weight = cfg.outer_weight;
+  EXPECT_EQ(default_weight, 0.5);
+  for (const double weight : {1.0, default_weight}) {
+    cfg.outer_weight = weight;
+    const Detection slab_contrast = detect_from(ScoreMethod::kContrast, slab);
+    const double expected = 0.5 * (1.0 - weight) * slab_contrast.inliers;
+    EXPECT_LT(std::abs(slab_contrast.score - expected), 4.0 * std::sqrt(slab_contrast.inliers))
+        << slab_contrast.inliers << " inliers, outer weight " << weight;
+    const Detection wall_contrast = detect_from(ScoreMethod::kContrast, wall);
+    EXPECT_EQ(wall_contrast.inliers, 100u);
+    EXPECT_NEAR(wall_contrast.score, 100.0, 1e-9) << "all of the wall lies within t/2";
+  }
+  // A search picks the wall by contrast and a slab by inlier count (what lies behind a slab
+  // counts again: a slab across the box, more inliers than along it, has most points behind).
+  cfg.beta = DetectorConfig{}.beta;
+  cfg.max_rounds = 20'000;
+  cfg.local_optimisation_iterations = 3;
+  for (const ScoreMethod method : {ScoreMethod::kContrast, ScoreMethod::kRansac}) {
+    cfg.method = method;
+    WallDetector det(cloud.size(), cfg);
+    det.set_points(cloud);
+    const Detection d = det.detect_3d();
+    EXPECT_EQ(is_plane(d.plane, wall), method == ScoreMethod::kContrast)
+        << static_cast<int>(method) << ": " << d.plane.n.transpose() << " " << d.plane.d;
+  }
+}
+
+TEST(Scores, BailOutDropsMostCandidatesEarlyAndKeepsTheWinner) {
+  // Over scenes of the benchmark's family: the detection with the bail-out test finds the
+  // plane the full count of every candidate finds, having counted most candidates on a subset.
+  std::uint32_t rounds = 0, bailed = 0;
+  for (std::uint64_t seed = 1; seed <= 12; ++seed) {
+    const auto scene = make_sparse_map(sparse_map_family(seed));
+    DetectorConfig cfg;
+    cfg.method = ScoreMethod::kContrast;
+    cfg.threshold_m = 0.05;
+    cfg.min_score = 30;  // as the room search sets it: 1.5 % of 2,000 points
+    cfg.max_rounds = 20'000;
+    Detection with[2];
+    for (const bool bail_out : {false, true}) {
+      cfg.bail_out = bail_out;
+      WallDetector det(scene.cloud.size(), cfg);
+      det.set_points(scene.cloud);
+      with[bail_out] = det.detect_3d();
+      ASSERT_TRUE(with[bail_out].found) << "seed " << seed;
+    }
+    EXPECT_EQ(with[false].candidates_bailed, 0u);
+    EXPECT_TRUE(is_plane(with[true].plane, with[false].plane)) << "seed " << seed;
+    EXPECT_NEAR(with[true].score, with[false].score, 0.02 * std::abs(with[false].score) + 2.0)
+        << "seed " << seed;
+    rounds += with[true].rounds;
+    bailed += with[true].candidates_bailed;
+  }
+  EXPECT_GT(bailed, rounds / 2) << bailed << " of " << rounds;
 }
 
 TEST(Detector, DegenerateCloudsGiveNoNanPlanes) {
@@ -358,6 +448,7 @@ TEST(Room, ASlabOfScatteredPointsIsNotASurface) {
     p.seed = seed;
     const auto scene = make_sparse_map(p);
     RoomConfig cfg;
+    cfg.detector.method = ScoreMethod::kBsf;  // kContrast ends at the slab by itself
     cfg.detector.threshold_m = 0.05;
     cfg.min_excess_sigma = 4.0;
     RoomEstimator room(scene.cloud.size());

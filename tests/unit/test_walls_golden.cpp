@@ -33,7 +33,8 @@ nlohmann::json detections() {
     ThesisSceneParams p;
     p.seed = seed;
     const auto scene = make_thesis_scene(p);
-    for (ScoreMethod m : {ScoreMethod::kRansac, ScoreMethod::kBsf, ScoreMethod::kBinomial}) {
+    for (ScoreMethod m : {ScoreMethod::kRansac, ScoreMethod::kBsf, ScoreMethod::kBinomial,
+                          ScoreMethod::kContrast}) {
       DetectorConfig cfg;
       cfg.method = m;
       cfg.threshold_m = 0.1;

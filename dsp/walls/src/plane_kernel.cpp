@@ -25,11 +25,13 @@ PlaneCounts ScorePlaneImpl(const float* HWY_RESTRICT x, const float* HWY_RESTRIC
   const auto vmd = hn::Set(df, -d);
   const auto vt = hn::Set(df, threshold);
   const auto vmt = hn::Set(df, -threshold);
+  const auto vht = hn::Set(df, 0.5f * threshold);
   const auto one = hn::Set(df, 1.0f);
   // Two independent accumulator sets hide the add latency.
   auto in0 = hn::Zero(df), in1 = hn::Zero(df);
   auto bk0 = hn::Zero(df), bk1 = hn::Zero(df);
   auto sq0 = hn::Zero(df), sq1 = hn::Zero(df);
+  auto ir0 = hn::Zero(df), ir1 = hn::Zero(df);
   std::size_t i = 0;
   for (; i + 2 * lanes <= n_padded; i += 2 * lanes) {
     const auto s0 = hn::MulAdd(
@@ -38,10 +40,14 @@ PlaneCounts ScorePlaneImpl(const float* HWY_RESTRICT x, const float* HWY_RESTRIC
     const auto s1 = hn::MulAdd(vnx, hn::LoadU(df, x + i + lanes),
                                hn::MulAdd(vny, hn::LoadU(df, y + i + lanes),
                                           hn::MulAdd(vnz, hn::LoadU(df, z + i + lanes), vmd)));
-    const auto m0 = hn::Lt(hn::Abs(s0), vt);
-    const auto m1 = hn::Lt(hn::Abs(s1), vt);
+    const auto a0 = hn::Abs(s0);
+    const auto a1 = hn::Abs(s1);
+    const auto m0 = hn::Lt(a0, vt);
+    const auto m1 = hn::Lt(a1, vt);
     in0 = hn::Add(in0, hn::IfThenElseZero(m0, one));
     in1 = hn::Add(in1, hn::IfThenElseZero(m1, one));
+    ir0 = hn::Add(ir0, hn::IfThenElseZero(hn::Lt(a0, vht), one));
+    ir1 = hn::Add(ir1, hn::IfThenElseZero(hn::Lt(a1, vht), one));
     bk0 = hn::Add(bk0, hn::IfThenElseZero(hn::Lt(s0, vmt), one));
     bk1 = hn::Add(bk1, hn::IfThenElseZero(hn::Lt(s1, vmt), one));
     sq0 = hn::Add(sq0, hn::IfThenElseZero(m0, hn::Mul(s0, s0)));
@@ -51,8 +57,10 @@ PlaneCounts ScorePlaneImpl(const float* HWY_RESTRICT x, const float* HWY_RESTRIC
     const auto s0 = hn::MulAdd(
         vnx, hn::LoadU(df, x + i),
         hn::MulAdd(vny, hn::LoadU(df, y + i), hn::MulAdd(vnz, hn::LoadU(df, z + i), vmd)));
-    const auto m0 = hn::Lt(hn::Abs(s0), vt);
+    const auto a0 = hn::Abs(s0);
+    const auto m0 = hn::Lt(a0, vt);
     in0 = hn::Add(in0, hn::IfThenElseZero(m0, one));
+    ir0 = hn::Add(ir0, hn::IfThenElseZero(hn::Lt(a0, vht), one));
     bk0 = hn::Add(bk0, hn::IfThenElseZero(hn::Lt(s0, vmt), one));
     sq0 = hn::Add(sq0, hn::IfThenElseZero(m0, hn::Mul(s0, s0)));
   }
@@ -60,6 +68,7 @@ PlaneCounts ScorePlaneImpl(const float* HWY_RESTRICT x, const float* HWY_RESTRIC
   c.inliers = static_cast<std::uint32_t>(hn::GetLane(hn::SumOfLanes(df, hn::Add(in0, in1))));
   c.backliers = static_cast<std::uint32_t>(hn::GetLane(hn::SumOfLanes(df, hn::Add(bk0, bk1))));
   c.inlier_sq_sum = hn::GetLane(hn::SumOfLanes(df, hn::Add(sq0, sq1)));
+  c.inner = static_cast<std::uint32_t>(hn::GetLane(hn::SumOfLanes(df, hn::Add(ir0, ir1))));
   return c;
 }
 
@@ -91,6 +100,7 @@ PlaneCounts score_plane_scalar(const float* x, const float* y, const float* z, s
       ++c.inliers;
       c.inlier_sq_sum += s * s;
     }
+    if (s < 0.5f * threshold && s > -0.5f * threshold) ++c.inner;
     if (s < -threshold) ++c.backliers;
   }
   return c;

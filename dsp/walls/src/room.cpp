@@ -85,6 +85,11 @@ RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& co
   const auto min_inliers = std::max<std::uint32_t>(
       config.min_inliers,
       static_cast<std::uint32_t>(config.min_inlier_fraction * static_cast<double>(result.points)));
+  // Scores counted in points (all but B-RANSAC's log score): the searches need not make
+  // finding planes that score under min_inliers likely (by kContrast no surface does; by BSF or
+  // MSAC, a score at most its inliers, such a plane is at the edge of a surface's size).
+  const bool score_in_points = config.detector.method != ScoreMethod::kBinomial;
+  detector_.mutable_config().min_score = score_in_points ? min_inliers : 0;
 
   std::vector<Plane> warm_vertical, warm_horizontal, warm_3d;
   if (previous != nullptr) {
@@ -126,7 +131,9 @@ RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& co
       search.time_ns = lap();
     }
     search.inliers = best.found ? best.inliers : 0;
-    if (!best.found || best.inliers < min_inliers) {
+    // By contrast a slab can hold many inliers and score little: its score decides.
+    const bool contrast = config.detector.method == ScoreMethod::kContrast;
+    if (!best.found || best.inliers < min_inliers || (contrast && best.score < min_inliers)) {
       search.outcome = best.found ? RoomSearch::Outcome::kTooSmall : RoomSearch::Outcome::kNone;
       break;
     }

@@ -85,7 +85,7 @@ std::optional<Plane> fit_plane_least_squares(std::span<const Eigen::Vector3d> po
 }
 
 WallDetector::WallDetector(std::size_t max_points, DetectorConfig config)
-    : config_(config), capacity_(max_points), rng_(config.seed) {
+    : config_(config), capacity_(max_points), rng_state_(config.seed) {
   const std::size_t cap =
       (max_points + kPointPadding - 1) / kPointPadding * kPointPadding + kPointPadding;
   x_.assign(cap, kNaN);
@@ -144,7 +144,7 @@ void WallDetector::set_points(const PointCloud& cloud, std::optional<Eigen::Vect
   const Eigen::Matrix3f R = R_work_input_.cast<float>();
   // A new problem starts the random stream afresh: results depend on the seed and the input
   // only, not on what the detector searched before.
-  rng_.seed(config_.seed);
+  rng_state_ = config_.seed;
   n_ = 0;
   skipped_ = 0;
   for (std::size_t i = 0; i < cloud.size(); ++i) {
@@ -159,6 +159,14 @@ void WallDetector::set_points(const PointCloud& cloud, std::optional<Eigen::Vect
     z_[n_] = q.z();
     ++n_;
   }
+  // Random order (Fisher-Yates), so that any first k points are a random sample of them: the
+  // bail-out test counts a candidate on the first kBailOutPoints.
+  for (std::size_t i = n_; i > 1; --i) {
+    const std::uint32_t j = draw(i);
+    std::swap(x_[i - 1], x_[j]);
+    std::swap(y_[i - 1], y_[j]);
+    std::swap(z_[i - 1], z_[j]);
+  }
   pad();
   grid_valid_ = false;
 }
@@ -172,9 +180,48 @@ void WallDetector::set_manhattan(std::optional<Eigen::Vector3d> axis, double tol
   if (a.norm() > 1e-6f) manhattan_axis_ = a.normalized();
 }
 
+bool WallDetector::evaluate_unless_hopeless(const Eigen::Vector3f& n, float d, double needed,
+                                            PlaneCounts& counts) const {
+  const std::size_t all = padded();
+  if (!config_.bail_out || config_.method == ScoreMethod::kBinomial || all < 4 * kBailOutPoints ||
+      !(needed > 0.0)) {
+    counts = evaluate(n, d);
+    return true;
+  }
+  const auto t = static_cast<float>(config_.threshold_m);
+  const bool backliers_count =
+      config_.method == ScoreMethod::kBsf || config_.method == ScoreMethod::kContrast;
+  const double b2 = backliers_count ? config_.beta * config_.beta : 0.0;
+  counts = PlaneCounts{};
+  std::size_t counted = 0;
+  // The points are in random order (set_points shuffles them), so the first k are a random
+  // sample: a candidate that scores `needed` on all points scores about needed * k / n on them,
+  // give or take the spread of its own counts there (each point adds 0, +-1 or -beta). More
+  // steps (64, 256, 1024 points) bailed more often on the best plane itself and took more
+  // rounds: one.
+  for (const std::size_t upto : {kBailOutPoints, all}) {
+    const std::size_t end = std::min(upto, all);
+    if (end <= counted) continue;
+    const PlaneCounts part =
+        score_plane(x_.data() + counted, y_.data() + counted, z_.data() + counted, end - counted,
+                    n.x(), n.y(), n.z(), d, t);
+    counts.inliers += part.inliers;
+    counts.backliers += part.backliers;
+    counts.inlier_sq_sum += part.inlier_sq_sum;
+    counts.inner += part.inner;
+    counted = end;
+    if (counted == all) break;
+    const double variance = static_cast<double>(counts.inliers) + b2 * counts.backliers + 1.0;
+    const double expected = needed * static_cast<double>(counted) / static_cast<double>(n_);
+    const double short_by = expected - score_of(counts);
+    if (short_by > 0.0 && short_by * short_by > 9.0 * variance) return false;  // 3 sd short
+  }
+  return true;
+}
+
 PlaneCounts WallDetector::evaluate(const Eigen::Vector3f& n, float d) const {
-  return score_plane(x_.data(), y_.data(), z_.data(), padded(), n.x(), n.y(), n.z(), d,
-                     static_cast<float>(config_.threshold_m));
+  const auto t = static_cast<float>(config_.threshold_m);
+  return score_plane(x_.data(), y_.data(), z_.data(), padded(), n.x(), n.y(), n.z(), d, t);
 }
 
 double WallDetector::rho_for_binomial() const {
@@ -193,6 +240,11 @@ double WallDetector::score_of(const PlaneCounts& c) const {
       return static_cast<double>(c.inliers) - config_.beta * c.backliers;
     case ScoreMethod::kBinomial:
       return binomial_log_score(c.inliers, c.backliers, rho_for_binomial());
+    case ScoreMethod::kContrast:
+      // The inner half of the band less its outer half, less beta per backlier.
+      return static_cast<double>(c.inner) -
+             config_.outer_weight * static_cast<double>(c.inliers - c.inner) -
+             config_.beta * c.backliers;
   }
   return c.inliers;
 }
@@ -214,8 +266,7 @@ bool WallDetector::orient_and_check(Mode mode, Eigen::Vector3f& n, float& d) con
   }
   if (mode == Mode::k3d && config_.facing_check) {
     // The wall's front must face the camera: it looks along view_dir into the wall.
-    const Eigen::Vector3f view = (R_work_input_ * config_.view_dir).cast<float>();
-    if (!(n.dot(view) < 0.0f)) return false;
+    if (!(n.dot(view_work_) < 0.0f)) return false;
   }
   if (mode == Mode::kVertical && manhattan_axis_) {
     const float c = std::abs(n.x() * manhattan_axis_->x() + n.y() * manhattan_axis_->y());
@@ -275,10 +326,12 @@ bool WallDetector::sample(Mode mode, bool guided, Eigen::Vector3f& n, float& d) 
       const Eigen::Vector3f ab = point(i1) - a;
       const Eigen::Vector3f ac = point(i2) - a;
       const Eigen::Vector3f c = ab.cross(ac);
-      const float norm = c.norm();
+      const float norm2 = c.squaredNorm();
       // Collinear or coincident: the cross product is tiny relative to the edge lengths.
-      if (!(norm > 1e-4f * ab.norm() * ac.norm()) || !(norm > 1e-12f)) return false;
-      n = c / norm;
+      if (!(norm2 > 1e-8f * ab.squaredNorm() * ac.squaredNorm()) || !(norm2 > 1e-24f)) {
+        return false;
+      }
+      n = c * (1.0f / std::sqrt(norm2));
       d = n.dot(a);
       return true;
     }
@@ -455,6 +508,7 @@ Detection WallDetector::detect(Mode mode, std::span<const Plane> warm_start) {
     rho_estimate_ = total > 0.0 ? std::clamp(first.backliers / total, 1e-3, 0.9) : 0.05;
   }
 
+  view_work_ = (R_work_input_ * config_.view_dir).cast<float>();
   const bool guided = config_.sampling == Sampling::kGuided && mode != Mode::kHorizontal;
   if (guided && (!grid_valid_ || grid_mode_ != mode)) build_grid(mode);
   const int m = sample_size(static_cast<int>(mode));
@@ -467,6 +521,8 @@ Detection WallDetector::detect(Mode mode, std::span<const Plane> warm_start) {
   double p_uniform = 0.0;       // an all-inlier uniform sample of the weakest possible winner
   double p_guided_model = 0.0;  // the same for a guided sample, from its neighbourhoods
   double guided_scale = 1.0;    // from the best plane to the weakest possible winner
+  double model_w = 0.0, model_sparser = 1.0;  // for p_guided_model, when it is next refreshed
+  bool model_stale = false;
   std::uint32_t guided_rounds = 0, guided_hits = 0;
   const auto t_m = static_cast<float>(config_.threshold_m);
   const float cos_close = std::cos(5.0f * static_cast<float>(M_PI) / 180.0f);
@@ -494,7 +550,12 @@ Detection WallDetector::detect(Mode mode, std::span<const Plane> warm_start) {
       ++best.candidates_skipped;
       return;
     }
-    PlaneCounts c = evaluate(n, d);
+    PlaneCounts c;
+    if (!evaluate_unless_hopeless(
+            n, d, std::max(best_score, static_cast<double>(config_.min_score)), c)) {
+      ++best.candidates_bailed;
+      return;
+    }
     double s = score_of(c);
     if (!(s > best_score)) return;
     // Local optimisation: refit on the inliers while that improves the score.
@@ -524,18 +585,30 @@ Detection WallDetector::detect(Mode mode, std::span<const Plane> warm_start) {
     const double n_min = config_.method == ScoreMethod::kBinomial
                              ? binomial_min_inliers(s, rho_for_binomial(), n_)
                              : s;
+    // Planes scoring under min_score are of no use: the rounds need only make finding one of
+    // that size likely, even while the best so far is smaller.
     const double w =
-        std::clamp(n_min / static_cast<double>(n_), 1.0 / static_cast<double>(n_), w_best);
+        std::max(std::clamp(n_min / static_cast<double>(n_), 1.0 / static_cast<double>(n_), w_best),
+                 static_cast<double>(config_.min_score) / static_cast<double>(n_));
+    const double sparser = std::min(1.0, w / w_best);
     p_uniform = std::pow(w, m);
     if (guided) {
-      // q: the fraction of an inlier's neighbours that are inliers, measured on the best
-      // plane and scaled down with the inlier count (a sparser plane, sparser neighbourhoods).
-      const double q = guided_inlier_fraction(n, d) * (w / w_best);
-      p_guided_model = w * std::pow(q, m - 1);
-      // What guided rounds showed on the best plane says little about a much sparser one
-      // (its neighbourhoods hold fewer of its own points): the credit falls off steeply.
-      guided_scale = std::pow(w / w_best, 2 * m);
+      // q (below, once the rounds reach min_rounds: a search finds many bests early on, and
+      // q costs a pass over the best's inliers' neighbourhoods) is scaled down with the inlier
+      // count. What guided rounds showed on the best plane says little about a much sparser
+      // one (its neighbourhoods hold fewer of its own points): the credit falls off steeply.
+      model_w = w;
+      model_sparser = sparser;
+      model_stale = true;
+      guided_scale = std::pow(sparser, 2 * m);
     }
+    update_target();
+  };
+  // q: the fraction of an inlier's neighbours that are inliers, measured on the best plane.
+  const auto refresh_guided_model = [&] {
+    const double q = guided_inlier_fraction(best_n, best_d) * model_sparser;
+    p_guided_model = model_w * std::pow(q, m - 1);
+    model_stale = false;
     update_target();
   };
 
@@ -547,7 +620,10 @@ Detection WallDetector::detect(Mode mode, std::span<const Plane> warm_start) {
   }
   std::uint32_t round = 0;
   for (; round < config_.max_rounds; ++round) {
-    if (round >= config_.min_rounds && round >= target) break;
+    if (round >= config_.min_rounds) {
+      if (model_stale) refresh_guided_model();
+      if (round >= target) break;
+    }
     const bool guided_round = guided && (round & 3u) != 0;  // 3 of 4 rounds: kGuidedShare
     Eigen::Vector3f n;
     float d = 0.0f;
@@ -563,6 +639,7 @@ Detection WallDetector::detect(Mode mode, std::span<const Plane> warm_start) {
     consider(n, d);
   }
   best.rounds = round;
+  if (model_stale) refresh_guided_model();  // for rounds_needed
   if (best_score == kMinusInf || best_counts.inliers == 0) return best;
   // Algorithm 4, line 15: the wall is the least-squares plane of the best candidate's
   // inliers. Count-based scores have flat optima (any tilt that keeps the band full scores

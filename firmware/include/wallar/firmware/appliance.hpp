@@ -90,7 +90,7 @@ struct ApplianceOptions {
   /// Adjusts the tracker and mapper settings made from the board file before they are used
   /// (benchmarks and tests: capacities, thresholds); empty: the board's.
   std::function<void(TrackingOptions&)> adjust_tracking;
-  dsp::ScoreMethod wall_method = dsp::ScoreMethod::kBsf;
+  dsp::ScoreMethod wall_method = dsp::RoomConfig{}.detector.method;
   double wall_threshold_m = 0.04;  //!< inlier band of the tracker's map
   int max_surfaces = 6;
   DurationNs reconstruct_period_ns = 200 * kNsPerMs;

@@ -34,7 +34,7 @@
 namespace wallar::firmware {
 
 struct ReconstructionOptions {
-  dsp::ScoreMethod method = dsp::ScoreMethod::kBsf;
+  dsp::ScoreMethod method = dsp::RoomConfig{}.detector.method;  //!< the room search's default
   double threshold_m = 0.04;  //!< inlier band of the tracker's map (at least)
   /// The search looks at the map within this of the newest key-frame (dsp::local_map): all of
   /// a room, the stretch of street around a moving rig.

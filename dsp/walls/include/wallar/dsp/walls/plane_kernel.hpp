@@ -5,7 +5,8 @@
 /// Points are structure-of-arrays floats, padded to a multiple of kPointPadding with NaN (NaN
 /// compares false, so padding is never an inlier nor a backlier): the kernel has no tail loop.
 /// For a plane n.p - d = 0 with n toward the viewer, a point with signed distance s is an
-/// inlier when |s| < t and a backlier when s < -t (behind the wall).
+/// inlier when |s| < t (in the band's inner half when |s| < t / 2) and a backlier when s < -t
+/// (behind the wall).
 ///
 /// The SIMD path is chosen at run time (Highway dynamic dispatch: AVX-512/AVX2/SSE4 on x86-64,
 /// NEON on aarch64) on top of the build's baseline; score_plane_scalar is the reference.
@@ -25,6 +26,7 @@ struct PlaneCounts {
   std::uint32_t inliers = 0;
   std::uint32_t backliers = 0;
   float inlier_sq_sum = 0.0f;  //!< sum of s^2 over the inliers [m^2] (for MSAC)
+  std::uint32_t inner = 0;     //!< inliers in the band's inner half, |s| < t / 2
 };
 
 /// Tests the plane (nx, ny, nz, d) against n_padded points (n_padded % kPointPadding == 0).

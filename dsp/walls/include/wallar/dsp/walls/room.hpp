@@ -27,12 +27,20 @@
 namespace wallar::dsp {
 
 struct RoomConfig {
-  DetectorConfig detector;
+  /// BSF (the DetectorConfig default), not kContrast: a tracker's map points scatter across
+  /// the whole band (far ones more), where the band's halves are equally full and a contrast
+  /// says nothing; on the street clip's map the facades were lost by contrast (docs/perf.md).
+  /// Each search stops at its confidence or at a budget of 20,000 rounds: the last search, the
+  /// one that finds nothing, would otherwise run (in 3-D, in dense clutter) 50,000 - 200,000
+  /// rounds to rule out a surface at min_inlier_fraction.
+  DetectorConfig detector{.max_rounds = 20'000};
   std::optional<Eigen::Vector3d> gravity;  //!< "down" in the cloud's frame; enables 2-D mode
   std::vector<Eigen::Vector3d> viewpoints{Eigen::Vector3d::Zero()};
   int max_surfaces = 6;
-  std::uint32_t min_inliers = 12;     //!< smaller surfaces are not reported
-  double min_inlier_fraction = 0.02;  //!< ... nor those under this share of the points
+  /// A surface has at least this many inliers (kContrast: scores at least this), else it is not
+  /// reported and the search ends.
+  std::uint32_t min_inliers = 12;
+  double min_inlier_fraction = 0.015;  //!< ... and at least this share of the points
   bool manhattan = false;
   double manhattan_tolerance_deg = 5.0;
   /// Opt-in (0: off, the default): a surface is denser than the space beside it. Its inlier

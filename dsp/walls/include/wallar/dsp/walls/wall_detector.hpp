@@ -8,6 +8,9 @@
 ///  - kMsac:     sum over inliers of (1 - s^2 / t^2)        (truncated quadratic loss)
 ///  - kBsf:      N_in - beta * N_back                        (BSF-RANSAC, eq. 3.1, beta >= 0)
 ///  - kBinomial: N_in * Binomial(N_back; N_in + N_back, rho_b), in log space (B-RANSAC, eq. 3.4)
+///  - kContrast: N_inner - w * N_outer - beta * N_back          (N_inner: inliers within t / 2,
+///               N_outer the others, w = outer_weight: BSF that a slab through scattered
+///               points, as full in its outer half as in its inner one, does not win)
 /// A backlier is a point behind the candidate wall seen from the viewpoints (s < -t with the
 /// normal turned toward them). A candidate is skipped when a viewpoint lies within
 /// min_viewpoint_distance_m of it or viewpoints lie on both sides, and, in 3-D, when its front
@@ -32,10 +35,10 @@
 #include <cmath>
 #include <cstdint>
 #include <optional>
-#include <random>
 #include <span>
 #include <vector>
 
+#include "wallar/core/hash.hpp"
 #include "wallar/core/plane.hpp"
 #include "wallar/core/point_cloud.hpp"
 #include "wallar/dsp/walls/plane_kernel.hpp"
@@ -44,8 +47,10 @@ namespace wallar::dsp {
 
 /// Viewpoints a WallDetector holds (set_viewpoints() refuses more).
 inline constexpr std::size_t kMaxViewpoints = 64;
+/// Points in the bail-out test's subset (DetectorConfig::bail_out); a multiple of kPointPadding.
+inline constexpr std::size_t kBailOutPoints = 256;
 
-enum class ScoreMethod : std::uint8_t { kRansac, kMsac, kBsf, kBinomial };
+enum class ScoreMethod : std::uint8_t { kRansac, kMsac, kBsf, kBinomial, kContrast };
 enum class Sampling : std::uint8_t { kUniform, kGuided };
 
 struct DetectorConfig {
@@ -56,6 +61,22 @@ struct DetectorConfig {
   double confidence = 0.99;   //!< eq. 2.7's p
   std::uint32_t max_rounds = 200'000;
   std::uint32_t min_rounds = 200;  //!< cheap insurance against an early lucky stop
+  /// The smallest score a result is of use with (a surface's minimum size): the rounds need not
+  /// make finding weaker planes likely (0: every plane that beats the best so far counts).
+  std::uint32_t min_score = 0;
+  /// kContrast scores N_inner - outer_weight N_outer - beta N_back (N_inner: inliers within
+  /// t / 2, N_outer: the other inliers). A slab through scattered points has N_inner = N_outer:
+  /// with 1 it scores nothing, with 0.5 a quarter of its inliers. 0.5 tolerates surfaces whose
+  /// points spread over more of the band: with kContrast in the appliance (threshold 1.5 x the
+  /// map's median sigma), the EuRoC still cut's wall is kept at 0.5 and lost at 1, and the
+  /// generated family's slabs still fall under their floor (docs/perf.md). A tracker's far
+  /// points scatter far beyond the band: on the street clip's map no weight keeps the facades.
+  double outer_weight = 0.5;
+  /// Bail-out (Capel 2005): a candidate is first counted on a random subset of the points
+  /// (kBailOutPoints) and dropped there when even three standard deviations above what it
+  /// scores on it would not reach the score it needs (the best so far, at least min_score).
+  /// Not for kBinomial (its log score does not scale with the points counted).
+  bool bail_out = true;
   std::uint64_t seed = 1;
   Sampling sampling = Sampling::kGuided;
   int local_optimisation_iterations = 3;  //!< 0 disables LO
@@ -77,6 +98,7 @@ struct Detection {
   std::uint32_t rounds = 0;
   std::uint32_t rounds_needed = 0;       //!< eq. 2.7 for the final estimate (capped)
   std::uint32_t candidates_skipped = 0;  //!< degenerate or behind-the-camera samples
+  std::uint32_t candidates_bailed = 0;   //!< dropped after the partial count (bail_out)
 };
 
 /// log(N_in * Binomial(k; n, rho)) with n = N_in + N_back, k = N_back (B-RANSAC, eq. 3.4).
@@ -139,6 +161,10 @@ class WallDetector {
   bool orient_and_check(Mode mode, Eigen::Vector3f& n, float& d) const;
   double score_of(const PlaneCounts& c) const;
   PlaneCounts evaluate(const Eigen::Vector3f& n, float d) const;
+  /// evaluate(), unless the bail-out test on the first kBailOutPoints says the candidate cannot
+  /// score `needed` (then false).
+  bool evaluate_unless_hopeless(const Eigen::Vector3f& n, float d, double needed,
+                                PlaneCounts& counts) const;
   bool sample(Mode mode, bool guided, Eigen::Vector3f& n, float& d);
   void build_grid(Mode mode);
   [[nodiscard]] std::uint32_t find_cell(int ix, int iy, int iz) const;
@@ -155,7 +181,7 @@ class WallDetector {
     return (n_ + kPointPadding - 1) / kPointPadding * kPointPadding;
   }
   std::uint32_t draw(std::size_t n) {
-    return static_cast<std::uint32_t>(((rng_() >> 32) * n) >> 32);
+    return static_cast<std::uint32_t>(((core::splitmix64_next(rng_state_) >> 32) * n) >> 32);
   }
 
   DetectorConfig config_;
@@ -177,7 +203,8 @@ class WallDetector {
   mutable std::vector<Eigen::Vector3d> scratch_points_;
   Mode grid_mode_ = Mode::k3d;
   bool grid_valid_ = false;
-  std::mt19937_64 rng_;
+  std::uint64_t rng_state_ = 0;  //!< splitmix64: a round draws several numbers (cheap ones)
+  Eigen::Vector3f view_work_ = Eigen::Vector3f::UnitZ();  //!< config_.view_dir, working frame
   std::optional<Eigen::Vector3f> manhattan_axis_;
   double manhattan_tol_rad_ = 0.0;
   mutable double rho_estimate_ = -1.0;
