@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <functional>
+#include <utility>
 
 namespace wallar::cli {
 
@@ -73,32 +74,31 @@ struct ReplayFlags {
 };
 void add_replay_flags(CLI::App& cmd, ReplayFlags& flags);
 
-/// The wall search's score by its command-line name: ransac, msac, bsf (BSF-RANSAC), binomial
-/// (B-RANSAC) or contrast (BSF on the band's contrast, for clouds whose noise is well within
-/// the threshold); options
-/// check the name with kScoreMethodNames.
-inline const std::vector<std::string> kScoreMethodNames{"ransac", "msac", "bsf", "binomial",
-                                                        "contrast"};
+/// The wall search's scores by their command-line names: ransac, msac, bsf (BSF-RANSAC),
+/// binomial (B-RANSAC) or contrast (BSF on the band's contrast, for clouds whose noise is well
+/// within the threshold). One table; options check the name with kScoreMethodNames.
+inline constexpr std::pair<const char*, dsp::ScoreMethod> kScoreMethods[] = {
+    {"ransac", dsp::ScoreMethod::kRansac},
+    {"msac", dsp::ScoreMethod::kMsac},
+    {"bsf", dsp::ScoreMethod::kBsf},
+    {"binomial", dsp::ScoreMethod::kBinomial},
+    {"contrast", dsp::ScoreMethod::kContrast}};
+inline const std::vector<std::string> kScoreMethodNames = [] {
+  std::vector<std::string> names;
+  for (const auto& [name, method] : kScoreMethods) names.emplace_back(name);
+  return names;
+}();
+/// The score named `m` (a name kScoreMethodNames holds; any other gives B-RANSAC).
 inline dsp::ScoreMethod score_method_named(const std::string& m) {
-  if (m == "ransac") return dsp::ScoreMethod::kRansac;
-  if (m == "msac") return dsp::ScoreMethod::kMsac;
-  if (m == "bsf") return dsp::ScoreMethod::kBsf;
-  if (m == "contrast") return dsp::ScoreMethod::kContrast;
+  for (const auto& [name, method] : kScoreMethods) {
+    if (m == name) return method;
+  }
   return dsp::ScoreMethod::kBinomial;
 }
 /// The command-line name of a score method (the inverse of score_method_named).
 inline const char* score_method_name(dsp::ScoreMethod m) {
-  switch (m) {
-    case dsp::ScoreMethod::kRansac:
-      return "ransac";
-    case dsp::ScoreMethod::kMsac:
-      return "msac";
-    case dsp::ScoreMethod::kBsf:
-      return "bsf";
-    case dsp::ScoreMethod::kBinomial:
-      return "binomial";
-    case dsp::ScoreMethod::kContrast:
-      return "contrast";
+  for (const auto& [name, method] : kScoreMethods) {
+    if (m == method) return name;
   }
   return "?";
 }

@@ -90,6 +90,8 @@ RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& co
   // MSAC, a score at most its inliers, such a plane is at the edge of a surface's size).
   const bool score_in_points = config.detector.method != ScoreMethod::kBinomial;
   detector_.mutable_config().min_score = score_in_points ? min_inliers : 0;
+  // By contrast a slab can hold many inliers and score little: its score decides.
+  const bool too_small_by_score = config.detector.method == ScoreMethod::kContrast;
 
   std::vector<Plane> warm_vertical, warm_horizontal, warm_3d;
   if (previous != nullptr) {
@@ -131,9 +133,8 @@ RoomResult RoomEstimator::estimate(const PointCloud& cloud, const RoomConfig& co
       search.time_ns = lap();
     }
     search.inliers = best.found ? best.inliers : 0;
-    // By contrast a slab can hold many inliers and score little: its score decides.
-    const bool contrast = config.detector.method == ScoreMethod::kContrast;
-    if (!best.found || best.inliers < min_inliers || (contrast && best.score < min_inliers)) {
+    if (!best.found || best.inliers < min_inliers ||
+        (too_small_by_score && best.score < min_inliers)) {
       search.outcome = best.found ? RoomSearch::Outcome::kTooSmall : RoomSearch::Outcome::kNone;
       break;
     }

@@ -192,36 +192,29 @@ bool WallDetector::evaluate_unless_hopeless(const Eigen::Vector3f& n, float d, d
   const bool backliers_count =
       config_.method == ScoreMethod::kBsf || config_.method == ScoreMethod::kContrast;
   const double b2 = backliers_count ? config_.beta * config_.beta : 0.0;
-  counts = PlaneCounts{};
-  std::size_t counted = 0;
   // The points are in random order (set_points shuffles them), so the first k are a random
   // sample: a candidate that scores `needed` on all points scores about needed * k / n on them,
   // give or take the spread of its own counts there (each point adds 0, +-1 or -beta). More
   // steps (64, 256, 1024 points) bailed more often on the best plane itself and took more
   // rounds: one.
-  for (const std::size_t upto : {kBailOutPoints, all}) {
-    const std::size_t end = std::min(upto, all);
-    if (end <= counted) continue;
-    const PlaneCounts part =
-        score_plane(x_.data() + counted, y_.data() + counted, z_.data() + counted, end - counted,
-                    n.x(), n.y(), n.z(), d, t);
-    counts.inliers += part.inliers;
-    counts.backliers += part.backliers;
-    counts.inlier_sq_sum += part.inlier_sq_sum;
-    counts.inner += part.inner;
-    counted = end;
-    if (counted == all) break;
-    const double variance = static_cast<double>(counts.inliers) + b2 * counts.backliers + 1.0;
-    const double expected = needed * static_cast<double>(counted) / static_cast<double>(n_);
-    const double short_by = expected - score_of(counts);
-    if (short_by > 0.0 && short_by * short_by > 9.0 * variance) return false;  // 3 sd short
-  }
+  constexpr std::size_t k = kBailOutPoints;
+  counts = score_plane(x_.data(), y_.data(), z_.data(), k, n.x(), n.y(), n.z(), d, t);
+  const double variance = static_cast<double>(counts.inliers) + b2 * counts.backliers + 1.0;
+  const double expected = needed * static_cast<double>(k) / static_cast<double>(n_);
+  const double short_by = expected - score_of(counts);
+  if (short_by > 0.0 && short_by * short_by > 9.0 * variance) return false;  // 3 sd short
+  const PlaneCounts rest =
+      score_plane(x_.data() + k, y_.data() + k, z_.data() + k, all - k, n.x(), n.y(), n.z(), d, t);
+  counts.inliers += rest.inliers;
+  counts.backliers += rest.backliers;
+  counts.inlier_sq_sum += rest.inlier_sq_sum;
+  counts.inner += rest.inner;
   return true;
 }
 
 PlaneCounts WallDetector::evaluate(const Eigen::Vector3f& n, float d) const {
-  const auto t = static_cast<float>(config_.threshold_m);
-  return score_plane(x_.data(), y_.data(), z_.data(), padded(), n.x(), n.y(), n.z(), d, t);
+  return score_plane(x_.data(), y_.data(), z_.data(), padded(), n.x(), n.y(), n.z(), d,
+                     static_cast<float>(config_.threshold_m));
 }
 
 double WallDetector::rho_for_binomial() const {
