@@ -521,6 +521,46 @@ TEST(TrackerEuroc, OnePairMakesAMap) {
   EXPECT_EQ(map->viewer_index.size(), map->points.size());  // one pair: one viewer each
 }
 
+// What a frame tracked, for embedders (the VIT features): one entry per inlier track, each
+// at its map point's projection (within the pose's inlier radius) and that point's depth; the
+// same points again in the next frame; nothing once lost or before the first frame.
+TEST(TrackerEuroc, FrameFeaturesAreTheInlierTracksAtTheirPointsDepths) {
+  firmware::TrackingOptions options;
+  options.mapping_thread = false;
+  firmware::TrackingAndMapping system(euroc_still().rig(), options);
+  const dsp::Tracker& tracker = system.tracker();
+  std::vector<dsp::FrameFeature> features(static_cast<std::size_t>(tracker.config().max_tracks));
+  EXPECT_EQ(tracker.frame_features(features), 0u);  // nothing tracked yet
+  std::vector<dsp::PointRef> first;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const dsp::TrackResult r = system.on_stereo(euroc_pair(i));
+    ASSERT_EQ(r.state, dsp::TrackingState::kTracking);
+    const std::size_t n = tracker.frame_features(features);
+    SCOPED_TRACE("frame " + std::to_string(i));
+    // The first frame's are its key-frame's new points; later ones the pose's inliers.
+    EXPECT_EQ(n, static_cast<std::size_t>(i == 0 ? r.new_points : r.inliers));
+    ASSERT_GT(n, 100u);
+    const SE3d T_cam_world = r.T_world_cam.inverse();
+    std::size_t kept = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+      const dsp::FrameFeature& f = features[k];
+      const dsp::MapPoint& p = tracker.map_points()[static_cast<std::size_t>(f.point.id)];
+      ASSERT_TRUE(p.alive);
+      EXPECT_EQ(p.generation, f.point.generation);
+      const Eigen::Vector3d p_cam = T_cam_world * p.p_world;
+      EXPECT_NEAR(f.depth_m, p_cam.z(), 1e-4 * p_cam.z());
+      const Eigen::Vector3d uvr = tracker.intrinsics().project(p_cam);
+      EXPECT_LT(std::hypot(uvr.x() - f.u_px, uvr.y() - f.v_px), 2.5);
+      if (std::isfinite(f.u_right_px)) {
+        EXPECT_LT(std::abs(uvr.z() - f.u_right_px), 2.5);
+      }
+      if (i == 0) first.push_back(f.point);
+      kept += std::find(first.begin(), first.end(), f.point) != first.end() ? 1 : 0;
+    }
+    EXPECT_GT(kept, n * 9 / 10);  // a still camera tracks the first frame's points on
+  }
+}
+
 // A reset on the tracking thread (SCHED_FIFO on a headset) never waits for the mapping thread,
 // which may be inside a bundle adjustment for a while: here one held 1 s. The old map's
 // key-frame is mapped meanwhile, and its correction is dropped, never applied to the new map;

@@ -304,6 +304,20 @@ const StereoIntrinsics& Tracker::intrinsics() const { return impl_->K; }
 const SE3d& Tracker::T_body_rect() const { return impl_->T_body_rect; }
 std::span<const MapPoint> Tracker::map_points() const { return impl_->points.span(); }
 const TrackerConfig& Tracker::config() const { return impl_->config; }
+std::size_t Tracker::frame_features(std::span<FrameFeature> out) const {
+  const Impl& m = *impl_;
+  if (m.state != TrackingState::kTracking) return 0;
+  std::size_t n = 0;
+  for (const Track& t : m.tracks.span()) {
+    if (n == out.size()) break;
+    const MapPoint& p = m.points[static_cast<std::size_t>(t.point)];
+    const double depth_m = (m.T_cw * p.p_world).z();
+    if (!p.alive || !(depth_m > 0.0)) continue;
+    out[n++] = {PointRef{t.point, p.generation}, t.u_px, t.v_px, t.u_right_px,
+                static_cast<float>(depth_m)};
+  }
+  return n;
+}
 const KeyframeMessage* Tracker::pending_keyframe() const {
   return impl_->message_pending ? &impl_->message : nullptr;
 }

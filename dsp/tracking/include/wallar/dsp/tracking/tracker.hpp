@@ -156,6 +156,15 @@ struct PointRef {
   friend bool operator==(const PointRef&, const PointRef&) = default;
 };
 
+/// A map point seen in the last frame, as the tracker measured it there (for embedders that show
+/// what is tracked, e.g. the VIT interface's pose features).
+struct FrameFeature {
+  PointRef point;                  //!< the map point (an id names one point per generation)
+  float u_px = 0.0f, v_px = 0.0f;  //!< rectified left image
+  float u_right_px = NAN;          //!< rectified right image, same row; NaN: not matched
+  float depth_m = 0.0f;            //!< the point's depth in the rectified left camera
+};
+
 /// A map point seen in a key-frame.
 struct KeyframeObservation {
   std::int32_t point = -1;
@@ -310,6 +319,10 @@ class Tracker {
   /// Rectified left camera -> the rig's body frame (T_body_cam0 * R1^T).
   [[nodiscard]] const SE3d& T_body_rect() const;
   [[nodiscard]] std::span<const MapPoint> map_points() const;
+  /// The last frame's tracked points (its pose's inliers, and a key-frame's new points) into
+  /// `out`, at most out.size() of them; returns how many. None unless that frame was tracked.
+  /// Never allocates.
+  std::size_t frame_features(std::span<FrameFeature> out) const;
   [[nodiscard]] const TrackerConfig& config() const;
 
  private:
