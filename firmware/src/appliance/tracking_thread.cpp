@@ -238,7 +238,7 @@ void TrackingThread::on_frame(const StereoFrame& f) {
     // In the first body pose's world, as the commands' files (T_body_rect: the tracker's world).
     options_.on_frame_pose({f.t_ns, f.left.publish_t_ns, taken_ns,
                             system_.tracker().T_body_rect() * T_world_body, r.state,
-                            r.rejected != nullptr, r.times});
+                            r.rejected != nullptr, r.times, &system_.tracker()});
   }
   if (r.rejected != nullptr) return;
   ++tracked_;

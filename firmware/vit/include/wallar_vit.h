@@ -18,6 +18,15 @@
  * finite difference of the last two poses [m/s]. Frames that are not tracked (initialising,
  * lost) give no pose.
  *
+ * Pose features (VIT_TRACKER_EXTENSION_POSE_FEATURES, off until enabled): per camera, the map
+ * points the tracker tracked in that frame (its pose's inliers and a key-frame's new points)
+ * where that camera saw them, in the pixels of the images pushed (the tracker measures in
+ * rectified images; each observation is taken back through its camera's rectification and
+ * distortion), with the point's depth along that camera's axis [m]. id names one map point
+ * in every pose that sees it (the low 32 bits its slot in the map, the high 32 the slot's
+ * generation, so a slot reused for a new point gives a new id). The right camera lists the
+ * points it matched; a point outside a camera's raw image is left out.
+ *
  * Threading contract (the interface's, and what this library adds):
  *  - vit_tracker_push_imu_sample() from one thread, vit_tracker_push_img_sample() from one
  *    thread (may be another), each with increasing time stamps; neither waits for the
@@ -150,8 +159,9 @@ typedef struct vit_pose_timing {
 } vit_pose_timing_t;
 
 typedef struct vit_pose_feature {
-  int64_t id;
-  float u, v, depth;
+  int64_t id;      /* the map point's, stable while it lives */
+  float u, v;      /* [px] in the camera's pushed image */
+  float depth;     /* [m] along the camera's axis */
 } vit_pose_feature_t;
 
 typedef struct vit_pose_features {

@@ -18,6 +18,7 @@
 #include <memory>
 #include <mutex>
 #include <new>
+#include <opencv2/calib3d.hpp>
 #include <string>
 #include <thread>
 #include <vector>
@@ -87,6 +88,8 @@ struct vit_pose {
   vit_pose_data_t data{};
   bool has_timing = false;
   std::array<std::int64_t, kTimingTitles.size()> timing{};
+  bool has_features = false;
+  std::array<std::vector<vit_pose_feature_t>, 2> features;  // per camera
 };
 
 struct vit_tracker {
@@ -99,6 +102,7 @@ struct vit_tracker {
   Eigen::Matrix3d gyro_transform = Eigen::Matrix3d::Identity();
   Eigen::Vector3d gyro_offset = Eigen::Vector3d::Zero();
   std::atomic<bool> timing_enabled{false};
+  std::atomic<bool> features_enabled{false};
 
   // While running. Push modules are kept until destroy: a push racing a stop finds its module.
   std::vector<std::unique_ptr<wallar::firmware::PushModule>> modules;
@@ -116,6 +120,10 @@ struct vit_tracker {
   TimeNs last_t_ns = 0;
   Eigen::Vector3d last_p = Eigen::Vector3d::Zero();
   std::atomic<bool> forget_last{false};
+  std::vector<wallar::dsp::FrameFeature> frame_features;  // the tracking thread's
+  std::array<std::vector<cv::Point3d>, 2> feature_points;
+  std::array<std::vector<cv::Point2d>, 2> feature_pixels;
+  std::array<std::vector<std::int64_t>, 2> feature_ids;
 
   ~vit_tracker() { clear_poses(); }
 
@@ -151,6 +159,9 @@ struct vit_tracker {
     pose->data.vx = static_cast<float>(v.x());
     pose->data.vy = static_cast<float>(v.y());
     pose->data.vz = static_cast<float>(v.z());
+    if (features_enabled.load(std::memory_order_relaxed) && f.tracker != nullptr) {
+      add_features(*f.tracker, *pose);
+    }
     if (timing_enabled.load(std::memory_order_relaxed)) {
       pose->has_timing = true;
       TimeNs t = f.taken_ns;
@@ -170,6 +181,62 @@ struct vit_tracker {
       ++poses_dropped;
     }
     poses.push_back(pose);
+  }
+
+  // The frame's tracked points where each camera saw them, in the pushed images' pixels (the
+  // tracker measures in rectified images: each observation goes back through its camera's
+  // rectification and distortion), with the point's depth in that camera.
+  void add_features(const wallar::dsp::Tracker& tracker, vit_pose& pose) {
+    if (frame_features.empty()) {
+      frame_features.resize(static_cast<std::size_t>(tracker.config().max_tracks));
+    }
+    const std::size_t n = tracker.frame_features(frame_features);
+    const wallar::dsp::StereoIntrinsics& K = tracker.intrinsics();
+    for (std::size_t c = 0; c < 2; ++c) {
+      feature_points[c].clear();
+      feature_ids[c].clear();
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      const wallar::dsp::FrameFeature& ff = frame_features[i];
+      const double z = ff.depth_m;
+      const double y = (ff.v_px - K.cy_px) * z / K.f_px;
+      const std::int64_t id = static_cast<std::int64_t>(ff.point.generation) << 32 |
+                              static_cast<std::uint32_t>(ff.point.id);
+      // In the rectified left camera: the left observation, and the right one (its camera
+      // sits baseline_m along +x).
+      feature_points[0].emplace_back((ff.u_px - K.cx_px) * z / K.f_px, y, z);
+      feature_ids[0].push_back(id);
+      if (std::isfinite(ff.u_right_px)) {
+        feature_points[1].emplace_back((ff.u_right_px - K.cx_px) * z / K.f_px + K.baseline_m, y, z);
+        feature_ids[1].push_back(id);
+      }
+    }
+    for (std::size_t c = 0; c < 2; ++c) {
+      const wallar::CameraCalibration& cam = rig.cams[c];
+      const wallar::SE3d T_cam_rect = cam.T_body_cam.inverse() * tracker.T_body_rect();
+      std::vector<vit_pose_feature_t>& out = pose.features[c];
+      out.clear();
+      for (cv::Point3d& p : feature_points[c]) {
+        const Eigen::Vector3d q = T_cam_rect * Eigen::Vector3d(p.x, p.y, p.z);
+        p = {q.x(), q.y(), q.z()};
+      }
+      if (feature_points[c].empty()) continue;
+      const cv::Matx33d Kc(cam.fx, 0.0, cam.cx, 0.0, cam.fy, cam.cy, 0.0, 0.0, 1.0);
+      cv::projectPoints(feature_points[c], cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), Kc,
+                        cam.distortion, feature_pixels[c]);
+      for (std::size_t i = 0; i < feature_points[c].size(); ++i) {
+        const cv::Point2d& uv = feature_pixels[c][i];
+        const double depth = feature_points[c][i].z;
+        // Seen by the tracker, but outside this camera's image or behind it: not reported.
+        if (!(depth > 0.0) ||
+            !(uv.x >= 0.0 && uv.x < cam.width_px && uv.y >= 0.0 && uv.y < cam.height_px)) {
+          continue;
+        }
+        out.push_back({feature_ids[c][i], static_cast<float>(uv.x), static_cast<float>(uv.y),
+                       static_cast<float>(depth)});
+      }
+    }
+    pose.has_features = true;
   }
 
   vit_result_t start() {
@@ -337,8 +404,7 @@ WALLAR_VIT_EXPORT vit_result_t vit_tracker_has_image_format(const vit_tracker_t*
 WALLAR_VIT_EXPORT vit_result_t vit_tracker_get_supported_extensions(
     const vit_tracker_t* tracker, vit_tracker_extension_set_t* out_exts) {
   if (tracker == nullptr || out_exts == nullptr) return VIT_ERROR_INVALID_VALUE;
-  // Features: the tracker's per-frame observations are not kept where a pose could take them.
-  *out_exts = {true, true, true, false};
+  *out_exts = {true, true, true, true};
   return VIT_SUCCESS;
 }
 
@@ -346,7 +412,7 @@ WALLAR_VIT_EXPORT vit_result_t vit_tracker_get_enabled_extensions(
     const vit_tracker_t* tracker, vit_tracker_extension_set_t* out_exts) {
   if (tracker == nullptr || out_exts == nullptr) return VIT_ERROR_INVALID_VALUE;
   // The calibration calls are always available.
-  *out_exts = {true, true, tracker->timing_enabled.load(), false};
+  *out_exts = {true, true, tracker->timing_enabled.load(), tracker->features_enabled.load()};
   return VIT_SUCCESS;
 }
 
@@ -362,7 +428,8 @@ WALLAR_VIT_EXPORT vit_result_t vit_tracker_enable_extension(vit_tracker_t* track
       tracker->timing_enabled.store(enable);
       return VIT_SUCCESS;
     case VIT_TRACKER_EXTENSION_POSE_FEATURES:
-      return enable ? VIT_ERROR_NOT_SUPPORTED : VIT_SUCCESS;
+      tracker->features_enabled.store(enable);
+      return VIT_SUCCESS;
     case VIT_TRACKER_EXTENSION_COUNT:
       break;
   }
@@ -608,9 +675,14 @@ WALLAR_VIT_EXPORT vit_result_t vit_pose_get_timing(const vit_pose_t* pose,
   return VIT_SUCCESS;
 }
 
-WALLAR_VIT_EXPORT vit_result_t vit_pose_get_features(const vit_pose_t* pose,
-                                                     uint32_t /*camera_index*/,
+WALLAR_VIT_EXPORT vit_result_t vit_pose_get_features(const vit_pose_t* pose, uint32_t camera_index,
                                                      vit_pose_features_t* out_features) {
-  if (pose == nullptr || out_features == nullptr) return VIT_ERROR_INVALID_VALUE;
-  return VIT_ERROR_NOT_SUPPORTED;
+  if (pose == nullptr || out_features == nullptr || camera_index > 1) {
+    return VIT_ERROR_INVALID_VALUE;
+  }
+  if (!pose->has_features) return VIT_ERROR_NOT_ENABLED;
+  const std::vector<vit_pose_feature_t>& f = pose->features[camera_index];
+  out_features->count = static_cast<uint32_t>(f.size());
+  out_features->features = f.data();
+  return VIT_SUCCESS;
 }

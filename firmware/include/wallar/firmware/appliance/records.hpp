@@ -43,6 +43,9 @@ struct FramePose {
   dsp::TrackingState state = dsp::TrackingState::kInitialising;
   bool rejected = false;    //!< not used (wrong size or format)
   dsp::TrackerTimes times;  //!< the tracker's stage times for this frame
+  /// The tracker that took the frame, for what it measured there (Tracker::frame_features);
+  /// valid during the call only, on the tracking thread.
+  const dsp::Tracker* tracker = nullptr;
 };
 
 struct DegradedCounters {
