@@ -187,7 +187,7 @@ PY
   expect_out "replay.recording"
   # The Pi board on a machine that is not a Pi: its calibration file (exit 2) and each device.
   run run --board "$src/board/rpi5.yaml" --check; expect_rc 2; expect_out "board rpi5"
-  expect_err "rpi5.yaml: calibration: /etc/wallar/calibration/camchain.yaml: no such file"
+  expect_err "rpi5.yaml: calibration: /etc/wallar/calibration/rig.yaml: no such file"
   expect_err "rpi5.yaml: display.card: /dev/dri/by-path/platform-axi:gpu-card: no such device"
   # The same board against a fake Raspberry Pi 5 device tree (kernel 6.6.45+: the RP1 header
   # chip is gpiochip0, labelled pinctrl-rp1; the udev links of both cameras and the display;
@@ -210,7 +210,7 @@ PY
   ln -s ../../../devices/platform/axi/1000120000.pcie/1f00074000.i2c/i2c-1 "$pi/sys/bus/i2c/devices/i2c-1"
   ln -s ../../../../../bus/platform/drivers/i2c_designware "$ctl/driver"
   run eval synth-rig --out "$tmp/pical" --duration 0.5 --camera-rate 30 --imu-only; expect_rc 0
-  cp "$tmp/pical/mav0/camchain-imucam.yaml" "$pi/etc/wallar/calibration/camchain.yaml"
+  cp "$tmp/pical/mav0/camchain-imucam.yaml" "$pi/etc/wallar/calibration/rig.yaml"
   run run --board "$src/board/rpi5.yaml" --check --root "$pi"; expect_rc 0; expect_out "board rpi5: ok"
   for line in "imu.data_ready.chip  *pinctrl-rp1 -> /dev/gpiochip0 (54 lines" \
       "cameras.left.device  */dev/v4l/by-path/platform-xhci-hcd.1-usb-0:1:1.0-video-index0 -> /dev/video0" \
@@ -1073,7 +1073,7 @@ record_live)
   [ -e "$tmp/rec" ] && fail "a failed live recording left a folder"
   # The Pi board's calibration file is the first thing missing here (bad input: exit 2).
   run record --board "$src/board/rpi5.yaml" --out "$tmp/rec" --duration-s 1; expect_rc 2
-  tail -n 1 "$tmp/err" | grep -qF "calibration: /etc/wallar/calibration/camchain.yaml: no such file" \
+  tail -n 1 "$tmp/err" | grep -qF "calibration: /etc/wallar/calibration/rig.yaml: no such file" \
     || fail "the last line is not the calibration's: $(cat "$tmp/err")"
   [ -e "$tmp/rec" ] && fail "a failed live recording left a folder"
   # A stereo-only calibration on a board with an IMU: refused before any device opens, naming

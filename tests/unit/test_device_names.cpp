@@ -110,7 +110,7 @@ void pi5_devices(FakeTree& t, int calibrated_width) {
   t.link("/dev/dri/by-path/platform-1002000000.v3d-card", "../card0");
   t.link("/dev/dri/by-path/platform-axi:gpu-card", "../card1");
   const std::string w = std::to_string(calibrated_width);
-  t.file("/etc/wallar/calibration/camchain.yaml", R"(cam0:
+  t.file("/etc/wallar/calibration/rig.yaml", R"(cam0:
   T_cam_imu:
   - [0.0, -1.0, 0.0, 0.02]
   - [1.0, 0.0, 0.0, 0.0]
@@ -242,7 +242,7 @@ TEST(BoardDevices, ThePi5BoardResolvesEveryDeviceOnAPi5TreeOfEitherKernel) {
     EXPECT_EQ(found(check, "imu.bus"), "/dev/i2c-1");
     EXPECT_EQ(found(check, "display.card"),
               "/dev/dri/by-path/platform-axi:gpu-card -> /dev/dri/card1");
-    EXPECT_EQ(found(check, "calibration"), "/etc/wallar/calibration/camchain.yaml");
+    EXPECT_EQ(found(check, "calibration"), "/etc/wallar/calibration/rig.yaml");
     EXPECT_EQ(found(check, "cameras.left mode"), "640x480 YUYV @ 30 Hz, as calibrated");
     EXPECT_EQ(found(check, "imu.bus_recovery"), "rebinds 1f00074000.i2c (i2c_designware)");
     EXPECT_EQ(found(check, "imu.bus_recovery.scl.chip"),
@@ -306,7 +306,7 @@ TEST(BoardDevices, AWrongCameraModeIsBadInputThatNamesTheKey) {
   ASSERT_EQ(check.problems.size(), 2u) << problems(check);
   EXPECT_TRUE(check.any_bad_input());
   EXPECT_EQ(check.problems[0].line,
-            "cameras.left.width/height: 640x480 but /etc/wallar/calibration/camchain.yaml "
+            "cameras.left.width/height: 640x480 but /etc/wallar/calibration/rig.yaml "
             "calibrates cam0 at 752x480 (calibrate at the mode the board captures, or capture "
             "at the calibrated one)");
   EXPECT_EQ(check.problems[1].line.substr(0, 26), "cameras.right.width/height");
