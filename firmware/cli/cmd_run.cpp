@@ -25,6 +25,7 @@
 #include "wallar/firmware/appliance/stats.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/board_devices.hpp"
+#include "wallar/firmware/device_measurement.hpp"
 #include "wallar/firmware/hil/replay_plan.hpp"
 #include "wallar/firmware/offline.hpp"
 #include "wallar/firmware/report.hpp"
@@ -136,12 +137,14 @@ nlohmann::json to_json(const firmware::ApplianceReport& r, const firmware::RunOu
 }
 
 // `--check`: the board file, its calibration and every device it names, found on this machine
-// without opening any (firmware/board_devices.hpp). What was found goes to stdout, each
-// problem to stderr as one line naming the key; exit 2 when the board contradicts itself or
-// its calibration, 1 when a device is missing.
+// (firmware/board_devices.hpp); then, when all is there, the cameras and the IMU run for a few
+// seconds through the appliance's own modules (firmware/device_measurement.hpp): the pair's
+// pairing rate and skew, the IMU's delivered rate. What was found goes to stdout, each
+// problem to stderr as one line naming the key and the device; exit 2 when the board
+// contradicts itself or its calibration, 1 when a device is missing or falls short.
 // With --root the devices are looked up in a tree copied from a board (or a test's fake):
-// its files answer no ioctl, so the cameras are not asked for their modes and GPIO chips are
-// described by the tree's sysfs.
+// its files answer no ioctl, so the cameras are not asked for their modes, nothing is
+// measured, and GPIO chips are described by the tree's sysfs.
 int run_check(const RunArgs& args, const firmware::BoardConfig& board) {
   const bool own = args.root.empty();
   const drivers::DeviceTree tree =
@@ -149,9 +152,30 @@ int run_check(const RunArgs& args, const firmware::BoardConfig& board) {
           : drivers::DeviceTree(args.root, drivers::gpio_chip_info_in(args.root));
   firmware::BoardCheck check =
       firmware::check_board(board, tree, own ? &drivers::linux_v4l2_system() : nullptr);
-  if (!own && board.source == firmware::BoardConfig::Source::kLive) {
+  const bool live = board.source == firmware::BoardConfig::Source::kLive;
+  if (!own && live) {
     check.found.push_back(
         {"camera modes", "not asked (devices under " + args.root + ", not this machine's)"});
+  }
+  if (own && live && check.ok()) {
+    // The devices as the product opens them (links kept, chips by path).
+    const firmware::BoardConfig resolved = firmware::resolve_board_devices(board, tree, nullptr);
+    const firmware::DeviceMeasurement m =
+        firmware::measure_devices(resolved, drivers::linux_v4l2_system(),
+                                  [](const std::string& line) { std::cerr << line << "\n"; });
+    char buf[160];
+    if (m.sync) {
+      std::snprintf(buf, sizeof buf, "%.1f %% of %llu frames paired, skew mean %.1f max %.1f ms",
+                    m.sync->paired_percent, static_cast<unsigned long long>(m.sync->frames),
+                    m.sync->mean_skew_ms, m.sync->max_skew_ms);
+      check.found.push_back({"stereo sync (measured)", buf});
+    }
+    if (m.imu_rate_hz) {
+      std::snprintf(buf, sizeof buf, "%.1f Hz delivered (runs at %.1f Hz)", *m.imu_rate_hz,
+                    m.imu_nominal_hz);
+      check.found.push_back({"imu rate (measured)", buf});
+    }
+    for (const std::string& p : m.problems) check.problems.push_back({p, false});
   }
   std::cout << "board " << board.name << " (" << args.board << (own ? "" : " in " + args.root)
             << "):\n";
@@ -359,7 +383,8 @@ void add_run_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_flag("--json", args->json, "Print the summary as JSON on stdout");
   cmd->add_flag("--check", args->check,
                 "Check the board file, its calibration and every device it names (GPIO chips "
-                "by label, udev links) without opening them, and exit");
+                "by label, udev links), then run the cameras and the IMU for a few seconds "
+                "(stereo pairing and skew, the IMU's rate), and exit");
   cmd->add_option("--root", args->root,
                   "With --check: look the devices up under this folder (its dev/ and sys/: a "
                   "tree copied from a board) instead of this machine's")

@@ -83,6 +83,7 @@ LiveImu::LiveImu(const BoardConfig& board, drivers::ImuSampleSink& sink, LogRing
     char addr[8];
     std::snprintf(addr, sizeof addr, "0x%02x", imu.address);
     description_ = "icm20948 on " + imu.bus + " @" + addr;
+    device_ = imu.bus;
     if (imu.data_ready)
       description_ +=
           ", data-ready " + imu.data_ready->chip + ":" + std::to_string(imu.data_ready->line);
@@ -103,6 +104,7 @@ LiveImu::LiveImu(const BoardConfig& board, drivers::ImuSampleSink& sink, LogRing
     nominal_rate_hz_ = config.rate_hz;
     parts_->driver = std::move(driver);
     description_ = "bno055 on " + config.device + " at " + std::to_string(config.baud) + " baud";
+    device_ = config.device;
   } else {
     throw_input_error(board.file.string(), 0, "the board names no IMU (imu.driver: none)");
   }
@@ -167,31 +169,38 @@ std::optional<double> StartupRate::update(TimeNs now_ns, std::uint64_t samples) 
   return std::nullopt;
 }
 
-void LiveImu::report_rate(double measured_hz) const {
-  const double window_s = ns_to_s(kRateWindowNs);
-  static constexpr const char* kLine = "imu rate over %g s: %.1f Hz (nominal %g Hz)";
-  static constexpr const char* kOff =
-      "WARNING: the IMU delivers %.1f Hz, not its nominal %g Hz: samples are being lost (check "
-      "the data-ready line, the bus speed and the imu thread's CPU)";
-  static constexpr const char* kNone =
-      "WARNING: the IMU delivered no sample in its first %g s (driver state %s): check its "
-      "wiring and the board's imu section";
-  const bool none = measured_hz <= 0.0;
-  const bool off = !none && !rate_ok(measured_hz, nominal_rate_hz_);
-  const char* state = drivers::to_string(parts_->driver->state()).data();  // a literal
+void LiveImu::report_rate(double measured_hz) {
+  measured_rate_hz_ = measured_hz;
   // A record for the log thread on the appliance (numbers only on this SCHED_FIFO thread); a
   // line on stderr for record and imu.
-  const auto say = [this](const char* format, std::initializer_list<LogArg> args) {
-    post_or_log(
-        ring_, [](const std::string& l) { std::fprintf(stderr, "wallar: %s\n", l.c_str()); },
-        format, args);
+  say_imu_rate(ns_to_s(kRateWindowNs), measured_hz, nominal_rate_hz_, device_.c_str(),
+               drivers::to_string(parts_->driver->state()).data(),  // a literal
+               ring_,
+               [](const std::string& l) { std::fprintf(stderr, "wallar: %s\n", l.c_str()); });
+}
+
+void say_imu_rate(double window_s, double measured_hz, double nominal_hz, const char* device,
+                  const char* driver_state, LogRing* ring,
+                  const std::function<void(const std::string&)>& fallback) {
+  static constexpr const char* kLine = "imu rate over %g s: %.1f Hz (nominal %g Hz)";
+  static constexpr const char* kOff =
+      "WARNING: imu (%s): it delivers %.1f Hz, not the %g Hz it runs at for imu.rate_hz: "
+      "samples are being lost (check the data-ready line, the bus speed and the imu thread's "
+      "CPU)";
+  static constexpr const char* kNone =
+      "WARNING: imu (%s): no sample in its first %g s (driver state %s): check its wiring and "
+      "the board's imu section (imu.driver, imu.bus, imu.address)";
+  const bool none = measured_hz <= 0.0;
+  const bool off = !none && !rate_ok(measured_hz, nominal_hz);
+  const auto say = [&](const char* format, std::initializer_list<LogArg> args) {
+    post_or_log(ring, fallback, format, args, device);
   };
   if (none) {
-    say(kNone, {window_s, state});
+    say(kNone, {LogArg::copied(), window_s, driver_state});
     return;
   }
-  say(kLine, {window_s, measured_hz, nominal_rate_hz_});
-  if (off) say(kOff, {measured_hz, nominal_rate_hz_});
+  say(kLine, {window_s, measured_hz, nominal_hz});
+  if (off) say(kOff, {LogArg::copied(), measured_hz, nominal_hz});
 }
 
 }  // namespace wallar::firmware

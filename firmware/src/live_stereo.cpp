@@ -56,6 +56,8 @@ struct LiveStereo::Parts {
   std::unique_ptr<GpioTrigger> trigger;
   std::unique_ptr<drivers::StereoCapture> capture;
   std::array<std::string, 2> names;
+  std::string pair;  // "left DEVICE, right DEVICE"
+  std::optional<sync::SyncAssessment> sync;
   Log log;
   LogRing* ring = nullptr;
 };
@@ -68,6 +70,7 @@ LiveStereo::LiveStereo(const BoardConfig& board, source::SensorSink& sink, Log l
   const auto configs = camera_configs(board);
   parts_->names = {configs[0].name + " camera (" + configs[0].device + ")",
                    configs[1].name + " camera (" + configs[1].device + ")"};
+  parts_->pair = "left " + configs[0].device + ", right " + configs[1].device;
   parts_->log = log ? std::move(log)
                     : [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
   if (board.camera_trigger) parts_->trigger = std::make_unique<GpioTrigger>(*board.camera_trigger);
@@ -104,6 +107,10 @@ LiveStereo::~LiveStereo() = default;
 
 const drivers::StereoCapture& LiveStereo::capture() const { return *parts_->capture; }
 
+const std::optional<sync::SyncAssessment>& LiveStereo::sync_assessment() const {
+  return parts_->sync;
+}
+
 std::string LiveStereo::description() const {
   std::string out;
   for (int i = 0; i < 2; ++i) {
@@ -137,29 +144,32 @@ void LiveStereo::run(TimeNs until_ns, const std::atomic<bool>& stop) {
 void LiveStereo::report_sync() {
   const drivers::StereoCapture& capture = *parts_->capture;
   const sync::SyncAssessment a = sync::assess_sync(capture.pairing(), capture.tolerance_ns());
+  parts_->sync = a;  // allocation-free: a value in storage made at construction
   const double window_s = ns_to_s(kSyncWindowNs);
   const char* rig = parts_->trigger ? "triggered cameras" : "free-running cameras (no trigger)";
   static constexpr const char* kLine =
       "stereo sync over the first %g s: %.1f %% of %lld frames paired, skew mean %.1f ms, "
       "max %.1f ms (tolerance %g ms)";
   static constexpr const char* kLowPairing =
-      "WARNING: only %.1f %% of the frames pair (under 90 %%): check that both cameras run at "
-      "the board's rate and that sync_tolerance_ms suits it";
+      "WARNING: cameras (%s): only %.1f %% of the frames pair (under 90 %%): check that both "
+      "run at the board's cameras.*.fps and that cameras.sync_tolerance_ms suits it";
   static constexpr const char* kHighSkew =
-      "WARNING: stereo pairs up to %.1f ms apart (over half the %g ms tolerance) from %s: the "
-      "tracker triangulates unsynchronised images, depth errs with motion";
+      "WARNING: cameras (%s): stereo pairs up to %.1f ms apart (over half of "
+      "cameras.sync_tolerance_ms, %g ms) from %s: the tracker triangulates unsynchronised "
+      "images, depth errs with motion";
   static constexpr const char* kFreeRunning =
       "%s: the tracker triangulates images up to %.1f ms apart";
   const auto frames = static_cast<long long>(a.frames);
   // A record for the log thread on the appliance; a line here for record.
   const auto say = [this](const char* format, std::initializer_list<LogArg> args) {
     post_or_log(
-        parts_->ring, [this](const std::string& l) { parts_->log("wallar: " + l); }, format, args);
+        parts_->ring, [this](const std::string& l) { parts_->log("wallar: " + l); }, format, args,
+        parts_->pair.c_str());
   };
   say(kLine, {window_s, a.paired_percent, frames, a.mean_skew_ms, a.max_skew_ms, a.tolerance_ms});
-  if (a.low_pairing) say(kLowPairing, {a.paired_percent});
+  if (a.low_pairing) say(kLowPairing, {LogArg::copied(), a.paired_percent});
   if (a.high_skew) {
-    say(kHighSkew, {a.max_skew_ms, a.tolerance_ms, rig});
+    say(kHighSkew, {LogArg::copied(), a.max_skew_ms, a.tolerance_ms, rig});
   } else if (!parts_->trigger) {
     say(kFreeRunning, {rig, a.max_skew_ms});
   }

@@ -19,7 +19,7 @@ std::string format_log_record(const LogRecord& record) {
   if (record.format == nullptr) return out;
   std::size_t next = 0;
   const char* p = record.format;
-  char buf[160];
+  char buf[LogRecord::kCopiedChars + 65];  // a copied text with a width to spare
   while (*p != '\0') {
     if (*p != '%') {
       out += *p++;
@@ -107,16 +107,26 @@ void set_args(LogRecord& r, const char* format, std::initializer_list<LogArg> ar
   for (; i < r.args.size(); ++i) r.args[i] = LogArg{};
 }
 
+/// The record's copied text (cut at LogRecord::kCopiedChars), or none.
+void set_copied(LogRecord& r, const char* copied) noexcept {
+  r.copied[0] = '\0';
+  if (copied == nullptr) return;
+  const std::size_t n = strnlen(copied, LogRecord::kCopiedChars);
+  std::memcpy(r.copied, copied, n);
+  r.copied[n] = '\0';
+}
+
 }  // namespace
 
 void post_or_log(LogRing* ring, const std::function<void(const std::string&)>& fallback,
-                 const char* format, std::initializer_list<LogArg> args) {
+                 const char* format, std::initializer_list<LogArg> args, const char* copied) {
   if (ring != nullptr) {
-    ring->post(format, args);
+    ring->post(format, args, copied);
     return;
   }
   LogRecord r;
   set_args(r, format, args);
+  set_copied(r, copied);
   fallback(format_log_record(r));
 }
 
@@ -140,12 +150,7 @@ bool LogRing::post(const char* format, std::initializer_list<LogArg> args,
   LogRecord& r = cell->record;
   r.t_ns = monotonic_now_ns();
   set_args(r, format, args);
-  r.copied[0] = '\0';
-  if (copied != nullptr) {
-    const std::size_t n = strnlen(copied, LogRecord::kCopiedChars);
-    std::memcpy(r.copied, copied, n);
-    r.copied[n] = '\0';
-  }
+  set_copied(r, copied);
   cell->seq.store(pos + 1, std::memory_order_release);
   wakeup_.notify();
   return true;

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <string>
+#include <vector>
 
 #include "icm20948_sim.hpp"
 #include "imu_rig.hpp"
@@ -617,6 +619,37 @@ TEST(Icm20948Driver, TheStartupRateCheckSeesAChipThatLosesSamples) {
   dead.sim.set_unplugged(true);
   EXPECT_EQ(startup_rate(dead, 0), 0.0);
   EXPECT_FALSE(firmware::rate_ok(0.0, dead.driver.rate_hz()));
+}
+
+// What the check says: each warning one line naming the device and the board's key, the same
+// through the log ring (the appliance's SCHED_FIFO imu thread) as formatted on the spot.
+TEST(Icm20948Driver, TheStartupRateLinesNameTheDeviceAndTheKey) {
+  const auto lines = [](double measured_hz, firmware::LogRing* ring) {
+    std::vector<std::string> out;
+    std::string device = "/dev/i2c-1";
+    firmware::say_imu_rate(3.0, measured_hz, 1125.0, device.c_str(), "running", ring,
+                           [&](const std::string& l) { out.push_back(l); });
+    device = "overwritten";  // a record keeps its own copy
+    firmware::LogRecord r;
+    while (ring != nullptr && ring->pop(r)) out.push_back(firmware::format_log_record(r));
+    return out;
+  };
+  const std::vector<std::string> ok = lines(1120.0, nullptr);
+  ASSERT_EQ(ok.size(), 1u);
+  EXPECT_EQ(ok[0], "imu rate over 3 s: 1120.0 Hz (nominal 1125 Hz)");
+  const std::vector<std::string> lossy = lines(560.0, nullptr);
+  ASSERT_EQ(lossy.size(), 2u);
+  EXPECT_EQ(lossy[1].substr(0, 92),
+            "WARNING: imu (/dev/i2c-1): it delivers 560.0 Hz, not the 1125 Hz it runs at for "
+            "imu.rate_hz:");
+  const std::vector<std::string> none = lines(0.0, nullptr);
+  ASSERT_EQ(none.size(), 1u);
+  EXPECT_EQ(none[0],
+            "WARNING: imu (/dev/i2c-1): no sample in its first 3 s (driver state running): check "
+            "its wiring and the board's imu section (imu.driver, imu.bus, imu.address)");
+  firmware::LogRing ring(8);
+  EXPECT_EQ(lines(560.0, &ring), lossy);
+  EXPECT_EQ(lines(0.0, &ring), none);
 }
 
 TEST(Icm20948Driver, NothingHappensBeforeTheFirstStepAndCountersPrint) {

@@ -14,6 +14,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -47,6 +48,14 @@ class StartupRate {
   return measured_hz > 0.0 && std::abs(measured_hz / nominal_hz - 1.0) <= 0.1;
 }
 
+/// The start-up rate check's lines: the measured rate, and a warning naming `device` and the
+/// board's key when it is more than 10 % off `nominal_hz` or 0 (nothing came). Into `ring`
+/// when there is one (no formatting on the caller's thread; `driver_state` must be a
+/// literal), else formatted for `fallback`.
+void say_imu_rate(double window_s, double measured_hz, double nominal_hz, const char* device,
+                  const char* driver_state, LogRing* ring,
+                  const std::function<void(const std::string&)>& fallback);
+
 class LiveImu {
  public:
   /// Opens the board's IMU. Throws InputError when the board names no IMU, and
@@ -71,18 +80,23 @@ class LiveImu {
   [[nodiscard]] const drivers::ImuDriver& driver() const;
   /// "icm20948 on /dev/i2c-1 @0x68, data-ready gpiochip4:24" and the like.
   [[nodiscard]] const std::string& description() const { return description_; }
+  /// The rate run() measured over its first kRateWindowNs after the first sample (0: none
+  /// came); none before (`wallar run --check`).
+  [[nodiscard]] std::optional<double> measured_rate_hz() const { return measured_rate_hz_; }
   /// Beats at every wait-and-step (at least every 100 ms), any thread: an imu thread stuck in
   /// a bus transfer reads as silent.
   [[nodiscard]] const Heartbeat& heartbeat() const { return heartbeat_; }
 
  private:
-  void report_rate(double measured_hz) const;
+  void report_rate(double measured_hz);
 
   struct Parts;
   std::unique_ptr<Parts> parts_;
   LogRing* ring_ = nullptr;
   double nominal_rate_hz_ = 0.0;
   std::string description_;
+  std::string device_;  // the bus or serial port, for the rate warnings
+  std::optional<double> measured_rate_hz_;
   Heartbeat heartbeat_{Heartbeat::Kind::kLoop};
 };
 

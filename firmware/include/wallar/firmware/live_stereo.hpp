@@ -15,10 +15,12 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "wallar/drivers/camera/stereo_capture.hpp"
 #include "wallar/drivers/camera/v4l2_system.hpp"
+#include "wallar/drivers/sync/stereo_pairer.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/log_ring.hpp"
 
@@ -51,6 +53,8 @@ class LiveStereo {
   static constexpr DurationNs kSyncWindowNs = 3 * kNsPerS;
 
   [[nodiscard]] const drivers::StereoCapture& capture() const;
+  /// What run() measured over its first kSyncWindowNs (none before; `wallar run --check`).
+  [[nodiscard]] const std::optional<sync::SyncAssessment>& sync_assessment() const;
   /// "left /dev/video0 640x480 YUYV 30.0 Hz (uvcvideo); right ..."
   [[nodiscard]] std::string description() const;
 

@@ -65,7 +65,7 @@ struct LogArg {
 
 struct LogRecord {
   static constexpr std::size_t kMaxArgs = 6;
-  static constexpr std::size_t kCopiedChars = 119;
+  static constexpr std::size_t kCopiedChars = 191;  // two by-path device names
   TimeNs t_ns = 0;
   const char* format = nullptr;  //!< static; %s, %d/%lld-style and %f/%g-style conversions
   std::array<LogArg, kMaxArgs> args{};
@@ -78,9 +78,11 @@ std::string format_log_record(const LogRecord& record);
 class LogRing;
 /// One line: a record in `ring` when there is one (a fixed-rate thread formats nothing), else
 /// formatted here as the log thread would and handed to `fallback` (commands that run no log
-/// thread: record, imu). At most LogRecord::kMaxArgs arguments.
+/// thread: record, imu). At most LogRecord::kMaxArgs arguments; `copied`: the text of a
+/// LogArg::copied() argument.
 void post_or_log(LogRing* ring, const std::function<void(const std::string&)>& fallback,
-                 const char* format, std::initializer_list<LogArg> args);
+                 const char* format, std::initializer_list<LogArg> args,
+                 const char* copied = nullptr);
 
 class LogRing {
  public:
