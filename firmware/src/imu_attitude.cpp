@@ -12,11 +12,15 @@ dsp::AttitudeFilterConfig attitude_config_for(const ImuCalibration& imu) {
   if (imu.rate_hz > 0.0) {
     config.init_window_samples = static_cast<std::size_t>(std::max(20.0, std::round(imu.rate_hz)));
   }
-  // The gyro's own noise figures where the calibration gives them (a datasheet's, or measured
-  // by `wallar calibrate imu-noise`), not values tuned on one flight. The accelerometer's
-  // noise in the filter stays a model of vibration and motion, not of the sensor.
+  // The sensors' own noise figures where the calibration gives them (a datasheet's, or
+  // measured by `wallar calibrate imu-noise`), not values tuned on one flight: the gyro's
+  // density and bias walk, the accelerometer's white noise per sample. The filter's motion
+  // term (vibration, the body's accelerations) is a model of the wearer, not of the sensor.
   if (imu.gyro_noise_density > 0.0) config.gyro_noise_rad_s_sqrt_hz = imu.gyro_noise_density;
   if (imu.gyro_random_walk > 0.0) config.gyro_bias_walk_rad_s2_sqrt_hz = imu.gyro_random_walk;
+  if (imu.accel_noise_density > 0.0 && imu.rate_hz > 0.0) {
+    config.accel_sensor_noise_m_s2 = imu.accel_noise_density * std::sqrt(imu.rate_hz);
+  }
   // The accelerometer's bias and the magnetometer's iron, where `calibrate accel-mag` gave them.
   config.accel_bias_m_s2 = imu.accel_bias_m_s2;
   config.mag_hard_iron_uT = imu.mag_hard_iron_uT;

@@ -254,6 +254,50 @@ TEST(AttitudeFilter, TheGyroNoiseComesFromTheImusCalibration) {
                    dsp::AttitudeFilterConfig{}.gyro_bias_walk_rad_s2_sqrt_hz);
 }
 
+// The accelerometer's own white noise comes from the calibration too (density x sqrt(rate) per
+// sample), beside the filter's motion term; an accelerometer noisier than that term is then
+// trusted less, and a still head's tilt holds better than when the filter assumes a quiet one.
+TEST(AttitudeFilter, TheAccelerometersNoiseComesFromTheImusCalibration) {
+  ImuCalibration imu;
+  imu.rate_hz = 200.0;
+  imu.accel_noise_density = 0.1;  // m/s^2/sqrt(Hz): 1.41 m/s^2 per sample
+  EXPECT_NEAR(firmware::attitude_config_for(imu).accel_sensor_noise_m_s2, 0.1 * std::sqrt(200.0),
+              1e-12);
+  EXPECT_EQ(firmware::attitude_config_for(ImuCalibration{}).accel_sensor_noise_m_s2, 0.0);
+  MotionSpec m;
+  m.still_s = 1.0;
+  m.rate_scale = 0.5;
+  m.moving_s = 30.0;
+  m.accel_noise_m_s2 = 1.41;
+  const Synthetic syn = make_motion(m, 7);
+  const auto tilt_rms_deg = [&](double sensor_noise_m_s2) {
+    dsp::AttitudeFilterConfig config;
+    config.accel_sensor_noise_m_s2 = sensor_noise_m_s2;
+    dsp::AttitudeFilter filter(config);
+    dsp::StaticImuEstimate still;
+    still.samples = 200;
+    still.mean_accel_m_s2 = m.q_start.conjugate() * Eigen::Vector3d(0.0, 0.0, 9.81);
+    still.gyro_bias_rad_s = m.gyro_bias_rad_s;
+    still.q_world_body = m.q_start;
+    filter.initialize(still, syn.samples.front().t_ns - kNsPerMs);
+    double sum = 0.0;
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < syn.samples.size(); ++i) {
+      filter.update(syn.samples[i]);
+      if (i < syn.samples.size() / 2) continue;
+      const double e = dsp::tilt_error_rad(filter.q_world_imu(), syn.q_world_imu[i]) * kDeg;
+      sum += e * e;
+      ++n;
+    }
+    return std::sqrt(sum / static_cast<double>(n));
+  };
+  const double known = tilt_rms_deg(1.41);
+  const double unknown = tilt_rms_deg(0.0);
+  std::printf("noisy accelerometer: tilt RMS %.3f deg with its noise known, %.3f without\n", known,
+              unknown);
+  EXPECT_LT(known, unknown);
+}
+
 TEST(AttitudeFilter, GroundTruthIsInterpolatedBetweenRows) {
   const auto rec = recording::read_euroc(bundled_recording());
   const auto& a = rec.ground_truth[3];

@@ -140,8 +140,8 @@ void AttitudeFilter::update_accel(const Eigen::Vector3d& accel_m_s2) {
     return;
   }
   ++counters_.accel_updates;
-  const double sigma =
-      (config_.accel_noise_m_s2 + config_.accel_noise_per_excess * excess) / gravity_m_s2_;
+  const double motion_m_s2 = config_.accel_noise_m_s2 + config_.accel_noise_per_excess * excess;
+  const double sigma = std::hypot(config_.accel_sensor_noise_m_s2, motion_m_s2) / gravity_m_s2_;
   // z = a/|a| is "up" in the IMU frame: z = Exp(-dtheta) u ~ u + [u]x dtheta.
   const Eigen::Vector3d up_imu = q_world_imu_.conjugate() * Eigen::Vector3d::UnitZ();
   const Eigen::Vector3d residual = accel_m_s2 / norm - up_imu;

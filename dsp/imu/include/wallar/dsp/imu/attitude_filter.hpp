@@ -40,8 +40,13 @@ struct AttitudeFilterConfig {
   /// the accelerometer more and, on EuRoC, raise the tilt error (2e-3: 0.92 degrees RMS).
   double gyro_noise_rad_s_sqrt_hz = 3.0e-4;
   double gyro_bias_walk_rad_s2_sqrt_hz = 2.0e-5;  //!< gyro bias random walk (datasheet 1.9e-5)
-  /// Accelerometer noise per sample when |a| = g: sensor noise plus vibration plus the
-  /// accelerations a body always has [m/s^2] (0.5 gives 0.82 degrees RMS on EuRoC, 6 gives 0.98).
+  /// The accelerometer's own white noise per sample [m/s^2]: its noise density times the root
+  /// of its rate, from the IMU's calibration (`wallar calibrate imu-noise`, a datasheet's);
+  /// 0: none known. Added (root sum of squares) to the motion term below.
+  double accel_sensor_noise_m_s2 = 0.0;
+  /// What moves the accelerometer off gravity besides its own noise, when |a| = g: vibration
+  /// and the accelerations a body always has [m/s^2]; a model of the motion, not of the sensor
+  /// (0.5 gives 0.82 degrees RMS on EuRoC, 6 gives 0.98).
   double accel_noise_m_s2 = 1.5;
   /// Added to the accelerometer noise per m/s^2 that |a| departs from g: the vehicle is
   /// accelerating and the accelerometer no longer points up.
