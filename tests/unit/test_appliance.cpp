@@ -20,6 +20,7 @@
 #include "wallar/dsp/walls/synthetic.hpp"
 #include "wallar/firmware/appliance.hpp"
 #include "wallar/firmware/appliance/reconstruction.hpp"
+#include "wallar/firmware/appliance/replay_module.hpp"
 #include "wallar/firmware/board.hpp"
 #include "wallar/firmware/hil/faults.hpp"
 #include "wallar/firmware/hil/replay_plan.hpp"
@@ -266,6 +267,77 @@ TEST(ApplianceHil, AHungRenderIsSeenAndItsRecoveryToo) {
   // under TSan 15 draws and 22 frames).
   ASSERT_FALSE(r.trajectory.empty());
   EXPECT_GT(r.view.view.last_t_ns - r.trajectory.front().t_ns, 4 * kNsPerS);
+  EXPECT_GT(r.trajectory.back().t_ns - r.trajectory.front().t_ns, 4 * kNsPerS);
+}
+
+// A live source's device loops (the capture and imu threads: LiveModule::heartbeats) are
+// watched like tracking and render: here a replay that also beats a "capture" and an "imu"
+// heartbeat from a loop of its own, the imu one silent for 2.5 s as an imu thread stuck in a
+// bus transfer would be. The supervisor withholds the watchdog and says so, names only that
+// thread, and says when it is back; tracking goes on meanwhile.
+class BeatingReplay final : public SourceModule {
+ public:
+  BeatingReplay(const recording::EurocRecording& rec, std::unique_ptr<ReplayPlan> plan)
+      : replay_(rec, source::ReplayOptions{}, std::move(plan)) {}
+  ~BeatingReplay() override {
+    done_.store(true);
+    if (beater_.joinable()) beater_.join();
+  }
+  void start(source::SensorSink& sink, drivers::ImuSampleSink& imu_sink, bool realtime,
+             const std::atomic<bool>& stop) override {
+    replay_.start(sink, imu_sink, realtime, stop);
+    beater_ = std::thread([this] {
+      const TimeNs t0 = monotonic_now_ns();
+      while (!done_.load() && !replay_.finished()) {
+        const TimeNs now = monotonic_now_ns();
+        capture_.beat(now);
+        if (now - t0 < 500 * kNsPerMs || now - t0 > 3000 * kNsPerMs) imu_.beat(now);
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+    });
+  }
+  [[nodiscard]] bool finished() const override { return replay_.finished(); }
+  bool join_within(DurationNs timeout_ns) override {
+    done_.store(true);
+    if (beater_.joinable()) beater_.join();
+    return replay_.join_within(timeout_ns);
+  }
+  [[nodiscard]] std::string describe() const override { return replay_.describe(); }
+  [[nodiscard]] std::vector<const RtThread*> threads() const override { return replay_.threads(); }
+  [[nodiscard]] std::vector<std::pair<const char*, const Heartbeat*>> heartbeats() const override {
+    return {{"capture", &capture_}, {"imu", &imu_}};
+  }
+  [[nodiscard]] std::exception_ptr error() const override { return replay_.error(); }
+
+ private:
+  ReplayModule replay_;
+  Heartbeat capture_{Heartbeat::Kind::kLoop, monotonic_now_ns()};
+  Heartbeat imu_{Heartbeat::Kind::kLoop, monotonic_now_ns()};
+  std::atomic<bool> done_{false};
+  std::thread beater_;
+};
+
+TEST(ApplianceHil, AStalledImuLoopIsSeenAndItsRecoveryToo) {
+  const recording::EurocRecording rec =
+      recording::read_euroc(std::filesystem::path(WALLAR_TEST_DATA) / "euroc_v1_01_still");
+  BeatingReplay source(rec, hil::replay_plan(3, {})(rec));  // 6 s: the stall, and after it
+  ApplianceOptions o = quiet_options();
+  std::vector<std::string> lines;
+  o.log = [&lines](const std::string& line) { lines.push_back(line); };
+  o.view = false;
+  o.mode = ApplianceMode::kRealTime;
+  const std::atomic<bool> stop{false};
+  const ApplianceReport r =
+      run_over_source(rec.rig(), "the bundled recording", source, sim_board(), o, stop);
+  std::vector<std::string> health;
+  for (const std::string& line : lines) {
+    if (line.find("stalled") != std::string::npos || line.find("alive again") != std::string::npos)
+      health.push_back(line);
+  }
+  ASSERT_EQ(health.size(), 2u) << testing::PrintToString(lines);
+  EXPECT_EQ(health[0], "imu thread stalled (no progress for 2 s): watchdog withheld");
+  EXPECT_EQ(health[1], "imu thread alive again");
+  ASSERT_FALSE(r.trajectory.empty());
   EXPECT_GT(r.trajectory.back().t_ns - r.trajectory.front().t_ns, 4 * kNsPerS);
 }
 
