@@ -1241,6 +1241,94 @@ open(sys.argv[1], 'w').write('\n'.join(rows) + '\n')
 PY
   run calibrate imu-noise "$tmp/still"; expect_rc 2; one_err_line; expect_err "the IMU moves"
   ;;
+calibrate_flow)
+  # The whole flow of docs/boot.md "Calibrating a new headset", each step fed the one before's
+  # file: imu-noise (still) -> accel-mag --imu (tilts and turns) -> imu-cam --cameras --imu
+  # (the calibration motion facing a room) -> the rig file a live board's calibration: key
+  # names. synth-rig renders no chessboard, so the cameras come as `calibrate stereo --kalibr`
+  # writes them: the clip's camchain without T_cam_imu (cli.calibrate_stereo covers that step
+  # on OpenCV's real chessboards). Natively only, as cli.calibrate_imu_cam.
+  [ -n "${WALLAR_EMULATOR:-}" ] && exit 0
+  # 1. Two minutes at rest, with the synth-rig IMU's densities (its sensor.yaml).
+  run eval synth-rig --out "$tmp/cal" --motion calibration --duration 70 --imu-only \
+    --magnetometer --seed 2; expect_rc 0
+  mkdir -p "$tmp/still/mav0/imu0"
+  python3 - "$tmp/cal/mav0/imu0/sensor.yaml" "$tmp/still/mav0/imu0/data.csv" <<'PY'
+import math, random, sys
+d = {l.split(':')[0]: float(l.split(':')[1].split('#')[0]) for l in open(sys.argv[1])
+     if l.split(':')[0] in ('gyroscope_noise_density', 'gyroscope_random_walk',
+                            'accelerometer_noise_density', 'accelerometer_random_walk')}
+random.seed(3)
+rate, n = 200.0, 24000
+bg, ba = [0.0] * 3, [0.0] * 3
+with open(sys.argv[2], 'w') as f:
+    f.write('#timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z\n')
+    for k in range(n):
+        g = [bg[i] + d['gyroscope_noise_density'] * math.sqrt(rate) * random.gauss(0, 1) for i in range(3)]
+        a = [ba[i] + d['accelerometer_noise_density'] * math.sqrt(rate) * random.gauss(0, 1)
+             + (9.81 if i == 2 else 0.0) for i in range(3)]
+        for i in range(3):
+            bg[i] += d['gyroscope_random_walk'] / math.sqrt(rate) * random.gauss(0, 1)
+            ba[i] += d['accelerometer_random_walk'] / math.sqrt(rate) * random.gauss(0, 1)
+        f.write('%d,%s\n' % (10**9 + k * 5000000, ','.join('%.9g' % v for v in g + a)))
+PY
+  run calibrate imu-noise "$tmp/still" --out "$tmp/imu.yaml" --json; expect_rc 0
+  gyro_nd=$(json "d['gyroscope_noise_density']"); accel_nd=$(json "d['accelerometer_noise_density']")
+  echo "flow: noise densities gyro $gyro_nd (generated 2.6e-4), accelerometer $accel_nd (2.3e-3)"
+  [ "$(json "abs(d['gyroscope_noise_density'] / 2.6e-4 - 1) < 0.1 and abs(d['accelerometer_noise_density'] / 2.3e-3 - 1) < 0.1")" = True ] \
+    || fail "noise: $(cat "$tmp/out")"
+  # 2. Accelerometer bias and magnetometer iron, starting from step 1's file.
+  run calibrate accel-mag "$tmp/cal" --imu "$tmp/imu.yaml" --out "$tmp/imu.yaml" --json
+  expect_rc 0
+  [ "$(json "d['accelerometer']['bias_error_m_s2'] < 0.005 and d['magnetometer']['solved']")" = True ] \
+    || fail "accel-mag: $(cat "$tmp/out")"
+  echo "flow: accelerometer bias error $(json "d['accelerometer']['bias_error_m_s2']") m/s^2," \
+    "heading spread $(json "d['magnetometer']['heading_spread_deg']") deg"
+  # 3. The camera-IMU transform and time offset (the IMU clock 8 ms behind), from the cameras
+  # without T_cam_imu and step 2's file.
+  run eval synth-rig --out "$tmp/la" --motion calibration --duration 20 --time-offset-ms -8 \
+    --seed 2 --width 320 --height 240; expect_rc 0
+  awk '/^  T_cam_imu:/ {skip = 4; next} skip > 0 {skip--; next} !/timeshift_cam_imu/' \
+    "$tmp/la/mav0/camchain-imucam.yaml" >"$tmp/stereo.yaml"
+  grep -q "T_cam_imu\|timeshift" "$tmp/stereo.yaml" && fail "stereo.yaml kept the IMU's parts"
+  run calibrate imu-cam "$tmp/la" --cameras "$tmp/stereo.yaml" --imu "$tmp/imu.yaml" \
+    --out "$tmp/rig.yaml" --json; expect_rc 0
+  [ "$(json "d['vs_calibration_deg'] < 0.5 and abs(d['timeshift_cam_imu_ms'] + 8.0) < 1.0")" = True ] \
+    || fail "imu-cam: $(cat "$tmp/out")"
+  echo "flow: extrinsic $(json "d['vs_calibration_deg']") deg off, time offset" \
+    "$(json "d['timeshift_cam_imu_ms']") ms (generated -8)"
+  # The rig file holds every step's figures: step 1's noise, step 2's bias and iron (as its
+  # file wrote them), T_cam_imu and the offset.
+  python3 - "$tmp/rig.yaml" "$tmp/imu.yaml" "$gyro_nd" "$accel_nd" <<'PY' || fail "rig.yaml: $(cat "$tmp/rig.yaml")"
+import sys
+rig, imu = open(sys.argv[1]).read(), open(sys.argv[2]).read()
+def values(text, key):
+    for l in text.splitlines():
+        if l.strip().startswith(key + ':'):
+            v = l.split(':', 1)[1].split('#')[0].strip().strip('[]')
+            return [float(x) for x in v.split(',')]
+    sys.exit('no ' + key)
+assert abs(values(rig, 'gyroscope_noise_density')[0] / float(sys.argv[3]) - 1) < 1e-6
+assert abs(values(rig, 'accelerometer_noise_density')[0] / float(sys.argv[4]) - 1) < 1e-6
+for key in ('accelerometer_bias', 'magnetometer_hard_iron', 'magnetometer_soft_iron'):
+    got, want = values(rig, key), values(imu, key)
+    assert len(got) == len(want) and max(abs(a - b) for a, b in zip(got, want)) < 1e-9, key
+assert rig.count('T_cam_imu') == 2 and rig.count('timeshift_cam_imu') == 2
+PY
+  # 4. A live board whose calibration: key names the rig file: its calibration checks pass
+  # (camera mode, rate, T_cam_imu), and only the absent devices are problems.
+  sed -e "s#^calibration:.*#calibration: $tmp/rig.yaml#" -e 's/^    width: 640/    width: 320/' \
+    -e 's/^    height: 480/    height: 240/' -e 's/^    fps: 30/    fps: 20/' \
+    "$src/board/rpi5.yaml" >"$tmp/board.yaml"
+  run run --board "$tmp/board.yaml" --check; expect_rc 1
+  expect_out "calibration"
+  grep -v ": no such device\|GPIO chip\|by-path" "$tmp/err" | grep -q . \
+    && fail "problems beyond the absent devices: $(cat "$tmp/err")"
+  # And as a board without T_cam_imu would be: refused, naming what is missing.
+  sed -e "s#^calibration:.*#calibration: $tmp/stereo.yaml#" "$tmp/board.yaml" >"$tmp/board2.yaml"
+  run run --board "$tmp/board2.yaml" --check; expect_rc 2
+  expect_err "T_cam_imu"
+  ;;
 calibrate_imu_cam)
   # The bundled cut stands still: the rotation cannot be determined, and the command says why.
   run calibrate imu-cam "$rec"; expect_rc 2; one_err_line
