@@ -73,7 +73,7 @@ void FakeV4l2Device::on_close(int fd) {
 
 short FakeV4l2Device::revents() const {
   if (!present_) return POLLERR | POLLHUP;
-  if (!streaming_) return POLLERR;
+  if (!streaming_ || queue_error_) return POLLERR;
   return done_count_ > 0 ? POLLIN : 0;
 }
 
@@ -250,6 +250,7 @@ int FakeV4l2Device::ioctl(int fd, unsigned long request, void* arg) {  // NOLINT
         return fail(EINVAL);
       if (request == VIDIOC_DQBUF) {
         if (!streaming_) return fail(EINVAL);
+        if (queue_error_) return fail(EIO);
         if (done_count_ == 0) return fail(EAGAIN);
         if (eagain_left_ > 0) {
           --eagain_left_;
@@ -296,6 +297,7 @@ int FakeV4l2Device::ioctl(int fd, unsigned long request, void* arg) {  // NOLINT
     case VIDIOC_STREAMOFF:
       if (fd != owner_fd_) return fail(EBUSY);
       streaming_ = false;
+      queue_error_ = false;
       for (auto& info : queue_->info) info.queued = false;
       queued_count_ = done_count_ = 0;
       return 0;

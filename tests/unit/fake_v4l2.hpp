@@ -71,6 +71,9 @@ class FakeV4l2Device {
   /// The next `count` calls of `request` fail with `err`.
   void fail_next(unsigned long request, int err, int count = 1);  // NOLINT(google-runtime-int)
   void unplug();
+  /// A fatal streaming error (vb2_queue_error, as vivid's "Inject Fatal Streaming Error"):
+  /// POLLERR and DQBUF fails with EIO until the stream is turned off.
+  void queue_error() { queue_error_ = true; }
   void replug() { present_ = true; }
   void jump_sequence(int delta) { sequence_ += static_cast<std::uint32_t>(delta); }
   void repeat_next_timestamp() { repeat_timestamp_ = true; }
@@ -119,6 +122,7 @@ class FakeV4l2Device {
   std::array<int, 32> done_{};
   int done_head_ = 0, done_count_ = 0;
   bool streaming_ = false;
+  bool queue_error_ = false;
   bool present_ = true;
   bool stalled_ = false;
   bool stall_until_streamon_ = false;

@@ -348,6 +348,32 @@ TEST_F(V4l2Test, IoErrorsRestartTheStream) {
   EXPECT_EQ(cap->camera(1).state(), CameraState::kStreaming);
 }
 
+// A fatal streaming error (vb2 marks the queue in error: POLLERR, no hang-up) is an I/O
+// error, not a disconnect: the stream is restarted; when its STREAMON is refused too, the
+// camera is reopened (the HIL boot injects the same through vivid's controls).
+TEST_F(V4l2Test, AQueueInErrorIsRestartedAndReopenedNotCountedAsADisconnect) {
+  auto cap = make();
+  cap->start();
+  run_pairs(*cap, 3);
+  right.queue_error();
+  run_pairs(*cap, 10);
+  {
+    const auto& c = cap->camera(1).counters();
+    EXPECT_GE(c.io_errors, 1u);
+    EXPECT_EQ(c.stream_restarts, 1u);
+    EXPECT_EQ(c.reopens, 0u);
+    EXPECT_EQ(c.disconnects, 0u);
+  }
+  right.fail_next(VIDIOC_STREAMON, EINVAL);
+  right.queue_error();
+  run_pairs(*cap, 10);
+  const auto& c = cap->camera(1).counters();
+  EXPECT_EQ(c.stream_restarts, 2u);
+  EXPECT_EQ(c.reopens, 1u);  // the restart's STREAMON refused: reopened at once
+  EXPECT_EQ(c.disconnects, 0u);
+  EXPECT_EQ(cap->camera(1).state(), CameraState::kStreaming);
+}
+
 TEST_F(V4l2Test, ErrorFlaggedAndShortBuffersAreCorruptNotDelivered) {
   auto cap = make();
   cap->start();

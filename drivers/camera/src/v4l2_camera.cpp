@@ -471,11 +471,14 @@ TimeNs V4l2Camera::step(TimeNs now_ns, short revents, CameraListener& listener) 
     if (err == EIO) ++counters_.io_errors;
   }
   if ((revents & (POLLERR | POLLHUP | POLLNVAL)) != 0) {
-    // vb2 signals POLLERR for a queue in error; uvcvideo hangs up on unplug.
-    return recover(
-        now_ns,
-        (revents & POLLERR) != 0 && (revents & POLLHUP) == 0 ? Rung::kRestart : Rung::kReopen,
-        "device error or gone (POLLERR/POLLHUP)", ENODEV, listener);
+    // vb2 signals POLLERR for a queue in error (an I/O error: restart the stream); uvcvideo
+    // hangs up on unplug (gone: reopen, counted as a disconnect).
+    const bool queue_error = (revents & POLLERR) != 0 && (revents & (POLLHUP | POLLNVAL)) == 0;
+    if (queue_error) {
+      ++counters_.io_errors;
+      return recover(now_ns, Rung::kRestart, "queue in error (POLLERR)", EIO, listener);
+    }
+    return recover(now_ns, Rung::kReopen, "device gone (POLLHUP)", ENODEV, listener);
   }
   if ((revents & POLLIN) != 0) {
     const int err = dequeue_all(now_ns, listener);
