@@ -158,8 +158,10 @@ int run_check(const RunArgs& args, const firmware::BoardConfig& board) {
         {"camera modes", "not asked (devices under " + args.root + ", not this machine's)"});
   }
   if (own && live && check.ok()) {
-    // The devices as the product opens them (links kept, chips by path).
-    const firmware::BoardConfig resolved = firmware::resolve_board_devices(board, tree, nullptr);
+    // The devices as the product opens them (links kept, chips by path); found again, as the
+    // check above found them.
+    firmware::BoardCheck again;
+    const firmware::BoardConfig resolved = firmware::resolve_board_devices(board, tree, &again);
     const firmware::DeviceMeasurement m =
         firmware::measure_devices(resolved, drivers::linux_v4l2_system(),
                                   [](const std::string& line) { std::cerr << line << "\n"; });

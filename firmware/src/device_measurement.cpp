@@ -58,7 +58,13 @@ DeviceMeasurement measure_devices(const BoardConfig& board, drivers::V4l2System&
   }
   std::thread imu_thread;
   if (imu) {
-    imu_thread = std::thread([&] { imu->run(monotonic_now_ns() + options.imu_ns, stop); });
+    imu_thread = std::thread([&] {
+      try {
+        imu->run(monotonic_now_ns() + options.imu_ns, stop);
+      } catch (const std::exception& e) {  // a device that fails mid-run: a problem line
+        imu_error = e.what();
+      }
+    });
   }
   try {
     LiveStereo stereo(board, sink, log, sys);
