@@ -153,6 +153,7 @@ int run_check(const RunArgs& args, const firmware::BoardConfig& board) {
   firmware::BoardCheck check =
       firmware::check_board(board, tree, own ? &drivers::linux_v4l2_system() : nullptr);
   const bool live = board.source == firmware::BoardConfig::Source::kLive;
+  std::vector<std::pair<std::string, std::string>> counters;  // the measured devices
   if (!own && live) {
     check.found.push_back(
         {"camera modes", "not asked (devices under " + args.root + ", not this machine's)"});
@@ -178,6 +179,7 @@ int run_check(const RunArgs& args, const firmware::BoardConfig& board) {
       check.found.push_back({"imu rate (measured)", buf});
     }
     for (const std::string& p : m.problems) check.problems.push_back({p, false});
+    counters = m.counters;
   }
   std::cout << "board " << board.name << " (" << args.board << (own ? "" : " in " + args.root)
             << "):\n";
@@ -186,6 +188,8 @@ int run_check(const RunArgs& args, const firmware::BoardConfig& board) {
   for (const auto& f : check.found) {
     std::cout << "  " << f.key << std::string(width + 2 - f.key.size(), ' ') << f.found << "\n";
   }
+  // The drivers' counters, as `wallar record` prints them.
+  for (const auto& [device, text] : counters) std::cout << "  " << device << ": " << text << "\n";
   for (const auto& p : check.problems) {
     std::cerr << "wallar: " << args.board << ": " << p.line << "\n";
   }

@@ -70,11 +70,18 @@ DeviceMeasurement measure_devices(const BoardConfig& board, drivers::V4l2System&
     LiveStereo stereo(board, sink, log, sys);
     stereo.run(sys.now_ns() + options.cameras_ns, stop);  // the cameras' clock
     out.sync = stereo.sync_assessment();
+    for (int i = 0; i < 2; ++i) {
+      const drivers::V4l2Camera& cam = stereo.capture().camera(i);
+      out.counters.emplace_back(cam.config().name, drivers::format_counters(cam.counters()));
+    }
   } catch (const std::exception& e) {
     camera_error = e.what();
   }
   if (imu_thread.joinable()) imu_thread.join();
-  if (imu) out.imu_rate_hz = imu->measured_rate_hz();
+  if (imu) {
+    out.imu_rate_hz = imu->measured_rate_hz();
+    out.counters.emplace_back("imu", drivers::format_counters(imu->driver().counters()));
+  }
 
   if (!camera_error.empty()) out.problems.push_back(cameras + ": " + camera_error);
   if (camera_error.empty() && !out.sync) {

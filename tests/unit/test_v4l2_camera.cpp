@@ -638,6 +638,10 @@ TEST(LiveStereoSync, TheBoardCheckMeasuresThePairAndNamesWhatFallsShort) {
   EXPECT_NEAR(good.sync->paired_percent, 100.0, 1e-9);
   EXPECT_NEAR(good.sync->max_skew_ms, 4.0, 0.05);
   EXPECT_FALSE(good.imu_rate_hz.has_value());
+  ASSERT_EQ(good.counters.size(), 2u);  // as `wallar record` prints them
+  EXPECT_EQ(good.counters[0].first, "left");
+  EXPECT_EQ(good.counters[1].first, "right");
+  EXPECT_EQ(good.counters[1].second.rfind("frames=", 0), 0u) << good.counters[1].second;
   EXPECT_TRUE(good.ok()) << good.problems.front();
   ASSERT_FALSE(good_lines.empty());  // the module's own sync line
   EXPECT_EQ(good_lines[0].substr(0, 39), "wallar: stereo sync over the first 3 s:");

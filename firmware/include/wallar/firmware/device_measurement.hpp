@@ -25,6 +25,9 @@ struct DeviceMeasurement {
   std::optional<sync::SyncAssessment> sync;  //!< the cameras' first LiveStereo::kSyncWindowNs
   std::optional<double> imu_rate_hz;         //!< delivered (0: nothing came); none: no IMU
   double imu_nominal_hz = 0.0;
+  /// The drivers' counters at the end ("left", "frames=.. reopens=.."), one line per device
+  /// opened, as `wallar record` prints them (the HIL boot accounts for every IMU burst).
+  std::vector<std::pair<std::string, std::string>> counters;
   /// One line each, naming the board key and the device: a camera or the IMU that could not
   /// be opened or started, under 90 % of the frames paired, an IMU rate 10 % off or none.
   std::vector<std::string> problems;
