@@ -159,12 +159,10 @@ int run_check(const RunArgs& args, const firmware::BoardConfig& board) {
         {"camera modes", "not asked (devices under " + args.root + ", not this machine's)"});
   }
   if (own && live && check.ok()) {
-    // The devices as the product opens them (links kept, chips by path); found again, as the
-    // check above found them.
-    firmware::BoardCheck again;
-    const firmware::BoardConfig resolved = firmware::resolve_board_devices(board, tree, &again);
+    // The devices as the product opens them (links kept, chips by path), as the check found
+    // them.
     const firmware::DeviceMeasurement m =
-        firmware::measure_devices(resolved, drivers::linux_v4l2_system(),
+        firmware::measure_devices(check.resolved, drivers::linux_v4l2_system(),
                                   [](const std::string& line) { std::cerr << line << "\n"; });
     char buf[160];
     if (m.sync) {

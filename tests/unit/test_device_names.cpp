@@ -248,6 +248,9 @@ TEST(BoardDevices, ThePi5BoardResolvesEveryDeviceOnAPi5TreeOfEitherKernel) {
     EXPECT_EQ(found(check, "imu.bus_recovery.scl.chip"),
               "pinctrl-rp1 -> " + rp1 + " (54 lines, 'pinctrl-rp1'), line 3");
     EXPECT_EQ(check.found.size(), 14u);
+    // What `run --check` measures with: the board as the product opens it (chips by path).
+    ASSERT_TRUE(check.resolved.imu.data_ready.has_value());
+    EXPECT_EQ(check.resolved.imu.data_ready->chip, rp1);
     // What the appliance opens: the chips by path.
     firmware::BoardCheck again;
     const firmware::BoardConfig resolved = firmware::resolve_board_devices(board, tree, &again);

@@ -237,6 +237,7 @@ void check_camera_modes(const BoardConfig& board, const drivers::DeviceTree& tre
 BoardCheck check_board(const BoardConfig& board, const drivers::DeviceTree& tree,
                        drivers::V4l2System* v4l2) {
   BoardCheck check;
+  check.resolved = board;
   if (board.source != BoardConfig::Source::kLive) {
     std::error_code ec;
     if (fs::exists(board.replay.recording, ec)) {
@@ -259,7 +260,7 @@ BoardCheck check_board(const BoardConfig& board, const drivers::DeviceTree& tree
       }
     }
   }
-  resolve_board_devices(board, tree, &check);
+  check.resolved = resolve_board_devices(board, tree, &check);
   if (v4l2 != nullptr) check_camera_modes(board, tree, *v4l2, &check);
   return check;
 }

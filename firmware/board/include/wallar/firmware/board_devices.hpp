@@ -41,6 +41,9 @@ struct BoardCheck {
   };
   std::vector<Found> found;
   std::vector<Problem> problems;
+  /// The board with each device named as the product opens it (resolve_board_devices), as
+  /// check_board() found it; a replay board as given.
+  BoardConfig resolved;
   [[nodiscard]] bool ok() const { return problems.empty(); }
   [[nodiscard]] bool any_bad_input() const;
 };
