@@ -240,6 +240,16 @@ TEST(ApplianceHil, AHungTrackingThreadIsSeenAndItsRecoveryToo) {
   EXPECT_GT(r.trajectory.back().t_ns - r.trajectory.front().t_ns, 4 * kNsPerS);
 }
 
+// The supervisor's health-check lines of a run's log ("X thread stalled ...", "... alive again").
+std::vector<std::string> health_lines(const std::vector<std::string>& lines) {
+  std::vector<std::string> health;
+  for (const std::string& line : lines) {
+    if (line.find("stalled") != std::string::npos || line.find("alive again") != std::string::npos)
+      health.push_back(line);
+  }
+  return health;
+}
+
 // A render thread stuck in a draw (the render-hang fault: 2.5 s, as a page flip that never
 // completes) withholds the watchdog too, and is said once when it is back: the watchdog means
 // the headset shows something, not only that tracking runs. Tracking meanwhile never waits for
@@ -254,11 +264,7 @@ TEST(ApplianceHil, AHungRenderIsSeenAndItsRecoveryToo) {
   o.before_draw = hil::render_hangs({hil::parse_fault("render-hang@0.5+2.5")});
   const std::atomic<bool> stop{false};
   const ApplianceReport r = run_appliance(board, o, stop);
-  std::vector<std::string> health;
-  for (const std::string& line : lines) {
-    if (line.find("stalled") != std::string::npos || line.find("alive again") != std::string::npos)
-      health.push_back(line);
-  }
+  const std::vector<std::string> health = health_lines(lines);
   ASSERT_EQ(health.size(), 2u) << testing::PrintToString(lines);
   EXPECT_EQ(health[0], "render thread stalled (no progress for 2 s): watchdog withheld");
   EXPECT_EQ(health[1], "render thread alive again");
@@ -329,11 +335,7 @@ TEST(ApplianceHil, AStalledImuLoopIsSeenAndItsRecoveryToo) {
   const std::atomic<bool> stop{false};
   const ApplianceReport r =
       run_over_source(rec.rig(), "the bundled recording", source, sim_board(), o, stop);
-  std::vector<std::string> health;
-  for (const std::string& line : lines) {
-    if (line.find("stalled") != std::string::npos || line.find("alive again") != std::string::npos)
-      health.push_back(line);
-  }
+  const std::vector<std::string> health = health_lines(lines);
   ASSERT_EQ(health.size(), 2u) << testing::PrintToString(lines);
   EXPECT_EQ(health[0], "imu thread stalled (no progress for 2 s): watchdog withheld");
   EXPECT_EQ(health[1], "imu thread alive again");
