@@ -21,6 +21,28 @@ expect_err() { grep -qF -- "$1" "$tmp/err" || fail "stderr lacks '$1': $(cat "$t
 expect_out() { grep -qF -- "$1" "$tmp/out" || fail "stdout lacks '$1': $(cat "$tmp/out")"; }
 one_err_line() { [ "$(grep -c . "$tmp/err")" = 1 ] || fail "expected one stderr line: $(cat "$tmp/err")"; }
 json() { python3 -c "import json,sys; d=json.load(open('$tmp/out')); print($1)"; }
+# still_imu FILE SEED NG KG NA KA: an EuRoC imu0/data.csv of two minutes at rest at 200 Hz,
+# white noise NG / NA and bias random walk KG / KA (gyro / accelerometer, continuous-time
+# densities in their discrete forms), for `calibrate imu-noise`.
+still_imu() {
+  python3 - "$@" <<'PY'
+import math, random, sys
+path, seed = sys.argv[1], int(sys.argv[2])
+ng, kg, na, ka = (float(v) for v in sys.argv[3:7])
+random.seed(seed)
+rate, n = 200.0, 24000
+bg, ba = [0.0] * 3, [0.0] * 3
+with open(path, 'w') as f:
+    f.write('#timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z\n')
+    for k in range(n):
+        g = [bg[i] + ng * math.sqrt(rate) * random.gauss(0, 1) for i in range(3)]
+        a = [ba[i] + na * math.sqrt(rate) * random.gauss(0, 1) + (9.81 if i == 2 else 0.0) for i in range(3)]
+        for i in range(3):
+            bg[i] += kg / math.sqrt(rate) * random.gauss(0, 1)
+            ba[i] += ka / math.sqrt(rate) * random.gauss(0, 1)
+        f.write('%d,%s\n' % (10**9 + k * 5000000, ','.join('%.9g' % v for v in g + a)))
+PY
+}
 # Starts `wallar run` on the sim board serving live on a free port, stdout to $1.json and stderr
 # to $1.err, for $2 seconds (more arguments follow); sets pid and url (ws://127.0.0.1:PORT/).
 start_live() {
@@ -1206,22 +1228,7 @@ calibrate_imu_noise)
   # Two minutes of a still IMU at 200 Hz generated with known densities (the simulator's
   # discrete forms): the Allan deviation reads them back; the bundled cut is too short.
   mkdir -p "$tmp/still/mav0/imu0"
-  python3 - "$tmp/still/mav0/imu0/data.csv" <<'PY'
-import math, random, sys
-random.seed(5)
-rate, n = 200.0, 24000
-ng, kg, na, ka = 2e-4, 2e-4, 2e-3, 3e-3
-bg, ba = [0.0] * 3, [0.0] * 3
-with open(sys.argv[1], 'w') as f:
-    f.write('#timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z\n')
-    for k in range(n):
-        g = [bg[i] + ng * math.sqrt(rate) * random.gauss(0, 1) for i in range(3)]
-        a = [ba[i] + na * math.sqrt(rate) * random.gauss(0, 1) + (9.81 if i == 2 else 0.0) for i in range(3)]
-        for i in range(3):
-            bg[i] += kg / math.sqrt(rate) * random.gauss(0, 1)
-            ba[i] += ka / math.sqrt(rate) * random.gauss(0, 1)
-        f.write('%d,%s\n' % (10**9 + k * 5000000, ','.join('%.9g' % v for v in g + a)))
-PY
+  still_imu "$tmp/still/mav0/imu0/data.csv" 5 2e-4 2e-4 2e-3 3e-3
   run calibrate imu-noise "$tmp/still" --out "$tmp/imu.yaml" --json; expect_rc 0
   [ "$(json "abs(d['gyroscope_noise_density'] / 2e-4 - 1) < 0.1")" = True ] || fail "gyro density: $(cat "$tmp/out")"
   [ "$(json "abs(d['gyroscope_random_walk'] / 2e-4 - 1) < 0.35")" = True ] || fail "gyro walk: $(cat "$tmp/out")"
@@ -1253,25 +1260,14 @@ calibrate_flow)
   run eval synth-rig --out "$tmp/cal" --motion calibration --duration 70 --imu-only \
     --magnetometer --seed 2; expect_rc 0
   mkdir -p "$tmp/still/mav0/imu0"
-  python3 - "$tmp/cal/mav0/imu0/sensor.yaml" "$tmp/still/mav0/imu0/data.csv" <<'PY'
-import math, random, sys
-d = {l.split(':')[0]: float(l.split(':')[1].split('#')[0]) for l in open(sys.argv[1])
-     if l.split(':')[0] in ('gyroscope_noise_density', 'gyroscope_random_walk',
-                            'accelerometer_noise_density', 'accelerometer_random_walk')}
-random.seed(3)
-rate, n = 200.0, 24000
-bg, ba = [0.0] * 3, [0.0] * 3
-with open(sys.argv[2], 'w') as f:
-    f.write('#timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z\n')
-    for k in range(n):
-        g = [bg[i] + d['gyroscope_noise_density'] * math.sqrt(rate) * random.gauss(0, 1) for i in range(3)]
-        a = [ba[i] + d['accelerometer_noise_density'] * math.sqrt(rate) * random.gauss(0, 1)
-             + (9.81 if i == 2 else 0.0) for i in range(3)]
-        for i in range(3):
-            bg[i] += d['gyroscope_random_walk'] / math.sqrt(rate) * random.gauss(0, 1)
-            ba[i] += d['accelerometer_random_walk'] / math.sqrt(rate) * random.gauss(0, 1)
-        f.write('%d,%s\n' % (10**9 + k * 5000000, ','.join('%.9g' % v for v in g + a)))
+  # shellcheck disable=SC2046  # the four densities, one word each
+  still_imu "$tmp/still/mav0/imu0/data.csv" 3 $(python3 - "$tmp/cal/mav0/imu0/sensor.yaml" <<'PY'
+import sys
+d = {l.split(':')[0]: l.split(':')[1].split('#')[0].strip() for l in open(sys.argv[1]) if ':' in l}
+print(' '.join(d[k] for k in ('gyroscope_noise_density', 'gyroscope_random_walk',
+                              'accelerometer_noise_density', 'accelerometer_random_walk')))
 PY
+)
   run calibrate imu-noise "$tmp/still" --out "$tmp/imu.yaml" --json; expect_rc 0
   gyro_nd=$(json "d['gyroscope_noise_density']"); accel_nd=$(json "d['accelerometer_noise_density']")
   echo "flow: noise densities gyro $gyro_nd (generated 2.6e-4), accelerometer $accel_nd (2.3e-3)"
