@@ -42,8 +42,7 @@ DeviceMeasurement measure_devices(const BoardConfig& board, drivers::V4l2System&
                                   const DeviceMeasurementOptions& options) {
   DeviceMeasurement out;
   if (board.source != BoardConfig::Source::kLive) return out;
-  const std::string cameras =
-      "cameras (left " + board.cameras[0].device + ", right " + board.cameras[1].device + ")";
+  const std::string cameras = "cameras (" + camera_pair_name(board) + ")";
   const std::atomic<bool> stop{false};
   DiscardSink sink;
   std::string camera_error, imu_error;

@@ -50,6 +50,10 @@ std::array<drivers::V4l2CameraConfig, 2> camera_configs(const BoardConfig& board
   return out;
 }
 
+std::string camera_pair_name(const BoardConfig& board) {
+  return "left " + board.cameras[0].device + ", right " + board.cameras[1].device;
+}
+
 struct LiveStereo::Parts {
   // Not owned: a frame a consumer still holds after the capture is gone unmaps through it.
   drivers::V4l2System* sys = nullptr;
@@ -70,7 +74,7 @@ LiveStereo::LiveStereo(const BoardConfig& board, source::SensorSink& sink, Log l
   const auto configs = camera_configs(board);
   parts_->names = {configs[0].name + " camera (" + configs[0].device + ")",
                    configs[1].name + " camera (" + configs[1].device + ")"};
-  parts_->pair = "left " + configs[0].device + ", right " + configs[1].device;
+  parts_->pair = camera_pair_name(board);
   parts_->log = log ? std::move(log)
                     : [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
   if (board.camera_trigger) parts_->trigger = std::make_unique<GpioTrigger>(*board.camera_trigger);

@@ -30,6 +30,9 @@ namespace wallar::firmware {
 /// the board file when a camera is incompletely described.
 std::array<drivers::V4l2CameraConfig, 2> camera_configs(const BoardConfig& board);
 
+/// "left DEVICE, right DEVICE": how the pair's lines name the board's two cameras.
+std::string camera_pair_name(const BoardConfig& board);
+
 class LiveStereo {
  public:
   using Log = std::function<void(const std::string& line)>;
