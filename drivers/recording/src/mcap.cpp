@@ -814,6 +814,12 @@ std::unique_ptr<File> File::open(const std::filesystem::path& path) {
                       "byte " + std::to_string(summary_start) +
                           ": summary CRC mismatch (the summary is damaged)");
   }
+  if (summary_offset_start != 0 &&
+      (summary_offset_start < summary_start || summary_offset_start > footer_pos)) {
+    throw_input_error(name, 0,
+                      "footer: summary offset start " + std::to_string(summary_offset_start) +
+                          " lies outside the summary section");
+  }
   const std::uint64_t summary_end =
       (summary_offset_start != 0 ? summary_offset_start : footer_pos) - summary_start;
   std::size_t at = 0;
