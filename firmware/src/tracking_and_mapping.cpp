@@ -55,6 +55,7 @@ TrackingAndMapping::TrackingAndMapping(const RigCalibration& rig, const Tracking
       gyro_(static_cast<std::size_t>(std::max(16, options.imu_capacity))) {
   T_rect_imu_ = tracker_.T_body_rect().inverse() * rig.imu.T_body_imu;
   timeshift_cam_imu_ns_ = rig.imu.timeshift_cam_imu_ns;
+  accel_bias_m_s2_ = rig.imu.accel_bias_m_s2;
   if (options_.mapping_thread) start_mapping();
 }
 
@@ -118,6 +119,7 @@ dsp::RotationPrior TrackingAndMapping::gyro_prior(TimeNs t_ns) {
       first + gyro_count_ <= size ? std::span<const ImuSample>() : all.first(gyro_head_);
   dsp::GyroIntegrationOptions gi;
   gi.timeshift_cam_imu_ns = timeshift_cam_imu_ns_;
+  gi.accel_bias_m_s2 = accel_bias_m_s2_;
   const dsp::GyroDelta delta =
       dsp::integrate_gyro(older, newer, last_frame_t_ns_, t_ns, gyro_bias_rad_s_, gi);
   if (!delta.valid) return prior;
@@ -126,6 +128,9 @@ dsp::RotationPrior TrackingAndMapping::gyro_prior(TimeNs t_ns) {
   prior.q_prev_cur = (q_rect_imu * delta.q_start_end * q_rect_imu.conjugate()).normalized();
   prior.valid = true;
   prior.bias_corrected = gyro_bias_known_;
+  prior.accel_valid = options_.use_accel;
+  prior.dv_imu_m_s = delta.dv_m_s;
+  prior.dp_imu_m = delta.dp_m;
   return prior;
 }
 

@@ -4,10 +4,14 @@
 /// extrapolation) and the predicted pose of a fast turn far from the world origin.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include "wallar/dsp/imu/gyro_integration.hpp"
+#include "wallar/dsp/tracking/accel_prediction.hpp"
+#include "wallar/dsp/tracking/synthetic_motion.hpp"
 #include "wallar/dsp/tracking/tracker.hpp"
 
 namespace wallar {
@@ -116,6 +120,80 @@ TEST(MotionPrior, AFastTurnFarFromTheOriginKeepsThePredictedCentreOnThePath) {
   SE3d old = velocity * T1;
   old.linear() = gyro.q_prev_cur.conjugate().toRotationMatrix() * T1.linear();
   EXPECT_GT((centre(old) - centre(T2)).norm(), 1.5);
+}
+
+/// A standing head's quick turns (synth-rig's model, 300 deg/s peak) seen at 20 Hz by a 200 Hz
+/// IMU: the IMU's next position from its last two poses and the specific force against the
+/// truth, in the frames of the turns (where the camera swings about the neck).
+struct TurnFigures {
+  double accel_max_mm = 0.0, accel_rms_mm = 0.0, constant_velocity_max_mm = 0.0;
+  double gravity_max_err_m_s2 = 0.0;
+  int turn_frames = 0;
+};
+
+TurnFigures predict_through_quick_turns(const ImuCalibration& noise) {
+  const dsp::SyntheticRoom room = dsp::headset_room(1);
+  dsp::HeadMotionConfig mc;
+  mc.motion = dsp::HeadMotion::kQuickTurns;
+  mc.seed = 9;
+  mc.duration_s = 12.0;
+  const dsp::HeadMotionModel model(room, mc);
+  dsp::SyntheticImuConfig ic;
+  ic.noise = noise;
+  ic.rate_hz = 200.0;
+  ic.accel_bias0_m_s2 = Eigen::Vector3d(0.05, 0.01, -0.09);  // not known to the prediction
+  dsp::SyntheticImu imu(model, ic, 0, 0);
+  std::vector<ImuSample> samples;
+  while (imu.next_truth_t_ns() <= 13 * kNsPerS) samples.push_back(imu.next().sample);
+  const DurationNs frame_ns = 50 * kNsPerMs;
+  const auto t_of = [&](int k) { return static_cast<TimeNs>(k) * frame_ns; };
+  const auto force = [&](int k) {  // the interval (k - 1, k]
+    const dsp::GyroDelta d =
+        dsp::integrate_gyro(samples, {}, t_of(k - 1), t_of(k), Eigen::Vector3d::Zero());
+    EXPECT_TRUE(d.valid);
+    return dsp::SpecificForceInterval{d.dv_m_s, d.dp_m, ns_to_s(frame_ns)};
+  };
+  const Eigen::Vector3d g(0.0, 0.0, -ic.gravity_m_s2);
+  TurnFigures f;
+  double sum_sq = 0.0;
+  for (int k = 2; t_of(k + 1) <= 12 * kNsPerS; ++k) {
+    const dsp::BodyMotionState truth = model.state(ns_to_s(t_of(k + 1)));
+    if (truth.omega_body_rad_s.norm() < 100.0 * kPi / 180.0) continue;  // not in a turn
+    const SE3d T0 = model.T_world_body(ns_to_s(t_of(k - 1)));
+    const SE3d T1 = model.T_world_body(ns_to_s(t_of(k)));
+    const dsp::SpecificForceInterval last = force(k), next = force(k + 1);
+    const Eigen::Vector3d p = dsp::predict_imu_position(T0, T1, last, next, g);
+    const double e_mm = 1000.0 * (p - truth.T_world_body.translation()).norm();
+    const Eigen::Vector3d cv = 2.0 * T1.translation() - T0.translation();
+    f.accel_max_mm = std::max(f.accel_max_mm, e_mm);
+    sum_sq += e_mm * e_mm;
+    f.constant_velocity_max_mm = std::max(f.constant_velocity_max_mm,
+                                          1000.0 * (cv - truth.T_world_body.translation()).norm());
+    const Eigen::Vector3d g_est = dsp::gravity_from_poses(T0, T1, truth.T_world_body, last, next);
+    f.gravity_max_err_m_s2 = std::max(f.gravity_max_err_m_s2, (g_est - g).norm());
+    ++f.turn_frames;
+  }
+  f.accel_rms_mm = std::sqrt(sum_sq / std::max(1, f.turn_frames));
+  return f;
+}
+
+TEST(AccelPrediction, AQuickTurnsSwingIsPredictedThroughTheSpecificForce) {
+  // A perfect IMU (but for an accelerometer bias nobody calibrated).
+  const TurnFigures exact = predict_through_quick_turns(ImuCalibration{});
+  ASSERT_GT(exact.turn_frames, 10);
+  EXPECT_LT(exact.accel_max_mm, 0.5);
+  EXPECT_LT(exact.gravity_max_err_m_s2, 0.5);
+  // Constant velocity misses where the turn speeds up and slows down.
+  EXPECT_GT(exact.constant_velocity_max_mm, 5.0);
+  // The headset's consumer MEMS noise (ICM-20948-like densities).
+  const TurnFigures noisy = predict_through_quick_turns(dsp::default_headset_rig().imu);
+  EXPECT_LT(noisy.accel_rms_mm, 1.0);
+  EXPECT_LT(noisy.accel_max_mm, 2.0);
+  std::printf(
+      "quick turns, %d frames: accel max %.3f mm (noisy %.3f, rms %.3f), constant "
+      "velocity max %.2f mm, gravity err max %.3f m/s^2 (noisy %.3f)\n",
+      exact.turn_frames, exact.accel_max_mm, noisy.accel_max_mm, noisy.accel_rms_mm,
+      exact.constant_velocity_max_mm, exact.gravity_max_err_m_s2, noisy.gravity_max_err_m_s2);
 }
 
 TEST(MotionPrior, TheGyrosTrustShrinksWithTheTimeSinceTheLastTrackedFrame) {

@@ -15,6 +15,15 @@ Eigen::Quaterniond exp_rotation(const Eigen::Vector3d& phi) {
   return Eigen::Quaterniond(Eigen::AngleAxisd(angle, phi / angle));
 }
 
+/// One constant-rate, constant-force step of h seconds: the specific force is rotated into the
+/// start frame at the step's midpoint attitude.
+void step(GyroDelta& d, const Eigen::Vector3d& w_rad_s, const Eigen::Vector3d& f_m_s2, double h) {
+  const Eigen::Vector3d f_start = (d.q_start_end * exp_rotation(0.5 * h * w_rad_s)) * f_m_s2;
+  d.dp_m += d.dv_m_s * h + 0.5 * h * h * f_start;
+  d.dv_m_s += h * f_start;
+  d.q_start_end = d.q_start_end * exp_rotation(w_rad_s * h);
+}
+
 }  // namespace
 
 GyroDelta integrate_gyro(std::span<const ImuSample> older, std::span<const ImuSample> newer,
@@ -38,7 +47,8 @@ GyroDelta integrate_gyro(std::span<const ImuSample> older, std::span<const ImuSa
     if (b.t_ns > t0) last = &b;
     if (s1 <= s0) continue;
     const Eigen::Vector3d w = 0.5 * (a.gyro_rad_s + b.gyro_rad_s) - bias_rad_s;
-    out.q_start_end = out.q_start_end * exp_rotation(w * ns_to_s(s1 - s0));
+    const Eigen::Vector3d f = 0.5 * (a.accel_m_s2 + b.accel_m_s2) - options.accel_bias_m_s2;
+    step(out, w, f, ns_to_s(s1 - s0));
     covered += s1 - s0;
     ++out.samples;
   }
@@ -48,8 +58,8 @@ GyroDelta integrate_gyro(std::span<const ImuSample> older, std::span<const ImuSa
     const TimeNs s0 = std::max(last->t_ns, t0);
     const DurationNs gap = std::min<DurationNs>(t1 - s0, options.max_extrapolation_ns);
     if (gap > 0) {
-      out.q_start_end =
-          out.q_start_end * exp_rotation((last->gyro_rad_s - bias_rad_s) * ns_to_s(gap));
+      step(out, last->gyro_rad_s - bias_rad_s, last->accel_m_s2 - options.accel_bias_m_s2,
+           ns_to_s(gap));
       covered += gap;
     }
   }

@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "wallar/dsp/stereo/rectifier.hpp"
+#include "wallar/dsp/tracking/accel_prediction.hpp"
 
 namespace wallar::dsp {
 
@@ -156,6 +157,14 @@ struct Tracker::Impl {
   double gyro_sigma_deg = 0.0;   // this frame's trust in gyro_R_cw (gyro_prior_sigma_deg)
   bool pose_gyro_aided = false;  // this frame's pose was solved with the gyro's rotation prior
 
+  // The accelerometer-aided prediction of the camera centre (predict_centre).
+  SE3d T_rect_imu = SE3d::Identity();
+  SE3d T_cw_before = SE3d::Identity();  // the frame before the last one's
+  bool accel_last = false;  // the last interval was tracked at both ends, with its specific force
+  SpecificForceInterval last_force;
+  Eigen::Vector3d g_world = Eigen::Vector3d::Zero();  // gravity in the map's world [m/s^2]
+  int g_samples = 0;
+
   std::int64_t now() const { return clock != nullptr ? clock() : 0; }
   /// solve() holds the rotation near the gyro's this frame.
   bool gyro_prior_active() const { return gyro_prior_valid && gyro_sigma_deg > 0.0; }
@@ -227,7 +236,45 @@ struct Tracker::Impl {
   void cull_points();
   void initialise(TimeNs t_ns, TrackResult& result);
   void clear_map();
+  /// The IMU's pose (world <- IMU) at camera pose T_cam_world.
+  SE3d T_world_imu(const SE3d& T_cam_world) const { return T_cam_world.inverse() * T_rect_imu; }
+  void predict_centre(const RotationPrior& imu, double dt_s, SE3d& prior) const;
+  void learn_gravity(const RotationPrior& imu, double dt_s);
 };
+
+/// The camera centre moved through the head's accelerations (accel_prediction.hpp): the IMU
+/// goes on at its last velocity, plus gravity and its specific force over the interval, and the
+/// camera sits where the gyro's rotation puts it about the IMU. `prior` keeps its rotation.
+void Tracker::Impl::predict_centre(const RotationPrior& imu, double dt_s, SE3d& prior) const {
+  if (!imu.accel_valid || !accel_last || g_samples == 0 || !(dt_s > 0.0)) return;
+  const SpecificForceInterval next{imu.dv_imu_m_s, imu.dp_imu_m, dt_s};
+  const Eigen::Vector3d p_imu = predict_imu_position(
+      T_world_imu(T_cw_before), T_world_imu(T_cw_last), last_force, next, g_world);
+  // T_world_cam = T_world_imu T_imu_rect: the camera's centre from the IMU's.
+  const Eigen::Vector3d c = p_imu - prior.linear().transpose() * T_rect_imu.translation();
+  prior.translation() = -prior.linear() * c;
+}
+
+/// Gravity in the map's world: the first estimate from the specific force alone (at rest at
+/// the start it is minus gravity), then the average of gravity_average_frames frames'
+/// estimates from the poses (gravity_from_poses), an estimate far from it dropped (a pose that
+/// jumped: a relocalisation, a correction).
+void Tracker::Impl::learn_gravity(const RotationPrior& imu, double dt_s) {
+  if (!imu.accel_valid || !(dt_s > 0.0)) return;
+  if (g_samples == 0) {
+    g_world = -T_world_imu(T_cw_last).linear() * imu.dv_imu_m_s / dt_s;
+    g_samples = 1;
+    return;
+  }
+  if (!accel_last) return;
+  const Eigen::Vector3d g =
+      gravity_from_poses(T_world_imu(T_cw_before), T_world_imu(T_cw_last), T_world_imu(T_cw),
+                         last_force, SpecificForceInterval{imu.dv_imu_m_s, imu.dp_imu_m, dt_s});
+  if (!g.allFinite() || (g - g_world).norm() > config.gravity_gate_m_s2) return;
+  const double alpha = 1.0 / std::min<double>(g_samples + 1, config.gravity_average_frames);
+  g_world += alpha * (g - g_world);
+  ++g_samples;
+}
 
 Tracker::Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock clock)
     : impl_(std::make_unique<Impl>()) {
@@ -252,6 +299,7 @@ Tracker::Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock c
     for (int j = 0; j < 3; ++j) T_cam0_rect.linear()(i, j) = rectifier.R(0)(j, i);
   }
   m.T_body_rect = rig.cams[0].T_body_cam * T_cam0_rect;
+  m.T_rect_imu = m.T_body_rect.inverse() * rig.imu.T_body_imu;
   for (int cam = 0; cam < 2; ++cam) {
     cv::Mat map_x, map_y;
     cv::initUndistortRectifyMap(rectifier.K(cam), rectifier.dist(cam), rectifier.R(cam),
@@ -345,7 +393,9 @@ void Tracker::reset() {
   m.segment_started = false;
   m.lost_frames = 0;
   m.state = TrackingState::kInitialising;
-  m.T_cw = m.T_cw_last = m.velocity = SE3d::Identity();
+  m.T_cw = m.T_cw_last = m.velocity = m.T_cw_before = SE3d::Identity();
+  m.accel_last = false;
+  m.g_samples = 0;
   m.message_pending = false;
 }
 
@@ -959,11 +1009,13 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
     m.initialise(t_ns, result);
     t3 = t4 = m.now();
   } else {
-    // Prediction: constant velocity, with the gyro's rotation when given.
-    const SE3d prior = predict_camera_pose(m.T_cw, m.velocity, gyro);
+    // Prediction: constant velocity, with the gyro's rotation when given, and with the
+    // accelerometer's specific force the centre through the head's accelerations.
+    const double dt_s = m.last_t_ns > 0 && t_ns > m.last_t_ns ? ns_to_s(t_ns - m.last_t_ns) : 0.0;
+    SE3d prior = predict_camera_pose(m.T_cw, m.velocity, gyro);
+    if (gyro.valid && m.config.accel_prediction) m.predict_centre(gyro, dt_s, prior);
     m.gyro_prior_valid = gyro.valid && gyro.bias_corrected;
     // The turn rate this frame (the prediction's: the gyro's when it has one).
-    const double dt_s = m.last_t_ns > 0 && t_ns > m.last_t_ns ? ns_to_s(t_ns - m.last_t_ns) : 0.0;
     m.turn_rate_deg_s =
         dt_s > 0.0 ? rotation_angle_deg(prior.linear() * m.T_cw.linear().transpose()) / dt_s : 0.0;
     m.observation_sigma_px =
@@ -1016,6 +1068,14 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
       }
       t3 = t4 = m.now();
     }
+    if (ok && gyro.valid && gyro.accel_valid && m.state == TrackingState::kTracking &&
+        !result.relocalised) {
+      m.learn_gravity(gyro, dt_s);
+      m.accel_last = true;
+      m.last_force = SpecificForceInterval{gyro.dv_imu_m_s, gyro.dp_imu_m, dt_s};
+    } else {
+      m.accel_last = false;
+    }
     if (ok) {
       m.state = TrackingState::kTracking;
       m.velocity = orthonormalised(m.T_cw * m.T_cw_last.inverse());
@@ -1053,6 +1113,7 @@ TrackResult Tracker::track(TimeNs t_ns, const Image& left, const Image& right,
       }
     }
   }
+  m.T_cw_before = m.T_cw_last;
   m.T_cw_last = m.T_cw;
   m.last_t_ns = t_ns;
   const std::int64_t t5 = m.now();
@@ -1092,6 +1153,8 @@ void Tracker::apply(const MapCorrection& correction) {
       const SE3d shift = c.T_world_cam * k->T_world_cam.inverse();  // old world -> new world
       m.T_cw = orthonormalised(m.T_cw * shift.inverse());
       m.T_cw_last = orthonormalised(m.T_cw_last * shift.inverse());
+      m.T_cw_before = orthonormalised(m.T_cw_before * shift.inverse());
+      m.g_world = shift.linear() * m.g_world;
     }
     k->T_world_cam = c.T_world_cam;
   }

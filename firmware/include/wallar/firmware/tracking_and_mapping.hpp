@@ -47,6 +47,9 @@ struct TrackingOptions {
   dsp::MapperConfig mapper;
   bool mapping_thread = true;  //!< false: lock step (repeatable)
   bool use_gyro = true;
+  /// The accelerometer's integrated specific force goes with the gyro's rotation (the
+  /// tracker predicts the camera centre through the head's accelerations).
+  bool use_accel = true;
   int imu_capacity = 4096;  //!< gyro samples kept between frames
   /// A global bundle adjustment after every this many key-frames while tracking (0: only the
   /// one finish() runs). Off: the threaded mode ran one whenever the mapper was idle after 5
@@ -139,7 +142,8 @@ class TrackingAndMapping {
   dsp::Tracker tracker_;
   std::unique_ptr<dsp::Mapper> mapper_;
   SE3d T_rect_imu_ = SE3d::Identity();
-  std::int64_t timeshift_cam_imu_ns_ = 0;  //!< t_imu = t_cam + this
+  std::int64_t timeshift_cam_imu_ns_ = 0;                      //!< t_imu = t_cam + this
+  Eigen::Vector3d accel_bias_m_s2_ = Eigen::Vector3d::Zero();  //!< the calibration's
   Eigen::Vector3d gyro_bias_rad_s_ = Eigen::Vector3d::Zero();
   bool gyro_bias_known_ = false;      //!< set_gyro_bias() was called
   dsp::StereoIntrinsics intrinsics_;  //!< the tracker's, for new mappers on either thread

@@ -23,6 +23,11 @@ namespace wallar::dsp {
 struct GyroDelta {
   /// R_imu(t0)_imu(t1): vectors of the IMU frame at t1 into the IMU frame at t0.
   Eigen::Quaterniond q_start_end = Eigen::Quaterniond::Identity();
+  /// The specific force (accelerometer, bias subtracted) integrated once and twice over the
+  /// interval, in the IMU frame at t0 (preintegration: gravity and the velocity at t0 are not
+  /// in them). The IMU's displacement is v0 dt + g dt^2 / 2 + R_world_imu(t0) dp_m.
+  Eigen::Vector3d dv_m_s = Eigen::Vector3d::Zero();
+  Eigen::Vector3d dp_m = Eigen::Vector3d::Zero();
   double covered_s = 0.0;  //!< the part of the interval the samples (and extrapolation) cover
   int samples = 0;         //!< samples that contributed
   /// The samples cover at least `min_coverage` of the interval.
@@ -31,6 +36,7 @@ struct GyroDelta {
 
 struct GyroIntegrationOptions {
   std::int64_t timeshift_cam_imu_ns = 0;  //!< t_imu = t_cam + this
+  Eigen::Vector3d accel_bias_m_s2 = Eigen::Vector3d::Zero();
   DurationNs max_extrapolation_ns = 20 * kNsPerMs;
   double min_coverage = 0.8;
 };

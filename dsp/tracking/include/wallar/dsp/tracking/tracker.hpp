@@ -124,6 +124,13 @@ struct TrackerConfig {
   /// frame rotation within 0.001 deg; 0.01 made the pose follow that noise (docs/results.md, HIL).
   double gyro_rotation_sigma_deg = 0.04;
   double gyro_sigma_interval_s = 0.05;
+  /// With the accelerometer's specific force in the prior (RotationPrior::accel_valid), the
+  /// camera centre is predicted through the head's accelerations, with gravity learnt from the
+  /// tracked poses: the average of gravity_average_frames frames' estimates, each one further
+  /// than gravity_gate_m_s2 from it dropped (a pose that jumped).
+  bool accel_prediction = true;
+  int gravity_average_frames = 100;
+  double gravity_gate_m_s2 = 4.0;
   DetectorParams detector{.bucket_px = 32};
   KltParams klt;
   StereoMatchParams stereo;
@@ -273,6 +280,14 @@ struct RotationPrior {
   /// (TrackerConfig::gyro_rotation_sigma_deg). Otherwise it only seeds the search (a bias of
   /// a few deg/s would turn a still camera).
   bool bias_corrected = false;
+  /// The accelerometer's specific force integrated once and twice over the same interval, in
+  /// the IMU frame at the last frame (GyroDelta::dv_m_s, dp_m). With them and the gravity the
+  /// tracker learns from its own poses, the camera centre is predicted through the head's
+  /// accelerations (a quick turn swings the camera about the neck) instead of at constant
+  /// velocity.
+  bool accel_valid = false;
+  Eigen::Vector3d dv_imu_m_s = Eigen::Vector3d::Zero();
+  Eigen::Vector3d dp_imu_m = Eigen::Vector3d::Zero();
 };
 
 /// The 1-sigma trust [deg] of the gyro's rotation over `dt_s` since the last tracked frame:
