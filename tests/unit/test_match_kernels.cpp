@@ -3,6 +3,7 @@
 // stereo row search's zero-mean SAD, the patch search's gain-normalised SAD): exact agreement of
 // every SIMD target with the scalar reference, and each cost against its definition computed in
 // double precision.
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include "simd_targets.hpp"
+#include "wallar/core/hash.hpp"
 #include "wallar/dsp/tracking/gray_image.hpp"
 #include "wallar/dsp/tracking/patch_cost.hpp"
 #include "wallar/dsp/tracking/row_zsad.hpp"
@@ -284,6 +286,30 @@ wallar::dsp::RemapTable distorted_table(int w, int h, int sw, int sh) {
   return wallar::dsp::RemapTable(w, h, mx, my, sw, sh);
 }
 
+/// Random spans (rectifying on demand: starting and ending anywhere, inside a kernel chunk,
+/// across rows, on the last pixels) against the whole image `whole`: the pixels they cover
+/// must hold its bytes, the others be untouched. Returns the pixels that differ.
+int spans_agree(const wallar::dsp::RemapTable& table, const wallar::dsp::GrayView& view,
+                const std::vector<std::uint8_t>& whole) {
+  const std::size_t n = static_cast<std::size_t>(table.width() * table.height());
+  std::vector<std::uint8_t> out(whole.size(), 0xee);
+  std::vector<bool> covered(n, false);
+  std::uint64_t state = 7;
+  for (std::size_t at = 0; at < n;) {
+    const std::size_t len =
+        std::min<std::size_t>(1 + wallar::core::splitmix64_next(state) % 97, n - at);
+    if (wallar::core::splitmix64_next(state) % 4 != 0) {
+      table.apply_span(view, out.data(), at, len);
+      for (std::size_t i = at; i < at + len; ++i) covered[i] = true;
+    }
+    at += len;
+  }
+  int differ = 0;
+  for (std::size_t i = 0; i < n; ++i) differ += out[i] != (covered[i] ? whole[i] : 0xee) ? 1 : 0;
+  for (std::size_t i = n; i < out.size(); ++i) differ += out[i] != 0xee ? 1 : 0;
+  return differ;
+}
+
 int compare_remaps(const TestImage& src, int stride_pad) {
   TestImage padded{src.width + stride_pad, src.height,
                    std::vector<std::uint8_t>(
@@ -301,6 +327,12 @@ int compare_remaps(const TestImage& src, int stride_pad) {
     table.apply(view, simd.data());
     table.apply_scalar(view, ref.data());
     EXPECT_EQ(simd, ref) << w << "x" << h << ", row pitch +" << stride_pad;
+    // Spans (rectifying on demand) give the same bytes as the whole image, touch nothing else,
+    // and may start and end anywhere: inside a kernel chunk, across rows, on the last pixels.
+    EXPECT_EQ(spans_agree(table, view, simd), 0) << w << "x" << h << ", row pitch +" << stride_pad;
+    std::vector<std::uint8_t> spans(simd.size(), 0xee);
+    EXPECT_THROW(table.apply_span(view, spans.data(), static_cast<std::size_t>(w * h) - 3, 4),
+                 std::invalid_argument);
     int black = 0;
     for (int i = 0; i < w * h; ++i) black += simd[static_cast<std::size_t>(i)] == 0 ? 1 : 0;
     EXPECT_GT(black, w) << "the map reaches past the borders";
@@ -339,6 +371,7 @@ TEST(RemapKernel, AnIdentityTableCopiesWhatTheTapsWouldGive) {
   table.apply_scalar(view, ref.data());
   EXPECT_EQ(fast, ref);
   EXPECT_EQ(fast[static_cast<std::size_t>(10 * w + 17)], *src.at(17, 10));
+  EXPECT_EQ(spans_agree(table, view, fast), 0);  // rows copied, the border's pixels black
   // Half a pixel off is not the identity.
   for (float& x : mx) x += 0.5f;
   EXPECT_FALSE(wallar::dsp::RemapTable(w, h, mx, my, w, h).identity());

@@ -561,6 +561,44 @@ TEST(TrackerEuroc, FrameFeaturesAreTheInlierTracksAtTheirPointsDepths) {
   }
 }
 
+// EuRoC's cameras are distorted: the right image is rectified only where the stereo searches
+// read it. Every pose, track and map point must come out as with the whole image rectified.
+TEST(TrackerEuroc, TheRightImageRectifiedOnDemandTracksAsTheWholeImageDoes) {
+  const auto run = [](bool on_demand) {
+    firmware::TrackingOptions options;
+    options.mapping_thread = false;
+    options.tracker.right_on_demand = on_demand;
+    firmware::TrackingAndMapping system(euroc_still().rig(), options);
+    std::vector<dsp::TrackResult> results;
+    for (std::size_t i = 0; i < euroc_still().cams[0].frames.size(); ++i) {
+      results.push_back(system.on_stereo(euroc_pair(i)));
+    }
+    std::vector<dsp::MapPoint> points(system.tracker().map_points().begin(),
+                                      system.tracker().map_points().end());
+    return std::pair{results, points};
+  };
+  const auto [lazy, lazy_points] = run(true);
+  const auto [whole, whole_points] = run(false);
+  ASSERT_EQ(lazy.size(), whole.size());
+  ASSERT_GE(lazy.size(), 40u);
+  for (std::size_t i = 0; i < lazy.size(); ++i) {
+    SCOPED_TRACE("frame " + std::to_string(i));
+    EXPECT_EQ(lazy[i].state, dsp::TrackingState::kTracking);
+    EXPECT_EQ(lazy[i].tracked, whole[i].tracked);
+    EXPECT_EQ(lazy[i].inliers, whole[i].inliers);
+    EXPECT_EQ(lazy[i].new_points, whole[i].new_points);
+    EXPECT_TRUE(lazy[i].T_world_cam.matrix() == whole[i].T_world_cam.matrix());
+  }
+  ASSERT_EQ(lazy_points.size(), whole_points.size());
+  int stereo = 0;
+  for (std::size_t k = 0; k < lazy_points.size(); ++k) {
+    EXPECT_EQ(lazy_points[k].alive, whole_points[k].alive);
+    EXPECT_TRUE(lazy_points[k].p_world == whole_points[k].p_world) << "point " << k;
+    stereo += lazy_points[k].alive ? 1 : 0;
+  }
+  EXPECT_GT(stereo, 150);  // the key-frame's points: each one's depth from a row search
+}
+
 // A reset on the tracking thread (SCHED_FIFO on a headset) never waits for the mapping thread,
 // which may be inside a bundle adjustment for a while: here one held 1 s. The old map's
 // key-frame is mapped meanwhile, and its correction is dropped, never applied to the new map;

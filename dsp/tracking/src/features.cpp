@@ -327,6 +327,26 @@ std::optional<float> match_along_row(const GrayView& left, const GrayView& right
   return disparity;
 }
 
+PixelRect match_along_row_reads(int width, int height, float u_px, float v_px, int d_min, int d_max,
+                                const StereoMatchParams& params) {
+  const int hw = std::clamp(params.half_window, 1, kRowZsadMaxHalfWindow);
+  const int xl = static_cast<int>(std::lround(u_px));
+  const int y = static_cast<int>(std::lround(v_px));
+  d_min = std::max(d_min, 0);
+  d_max = std::min({d_max, xl - hw - 1, d_min + 511});
+  // The row kernels read xl - d_max - hw .. xl - d_min + hw over rows y +- hw. The refinement
+  // (9x9, its disparity within 1 px of the match's, itself within 1 px of [d_min, d_max]) reads
+  // a column more on each side and their bilinear neighbours: xl - d_max - 8 .. xl - d_min + 8,
+  // rows y - 4 .. y + 5. One pixel more on each side for rounding.
+  const int cols = std::max(hw, 8) + 1, rows = std::max(hw, 4);
+  PixelRect r;
+  r.x0 = std::clamp(xl - d_max - cols, 0, width);
+  r.x1 = std::clamp(xl - d_min + cols + 1, 0, width);
+  r.y0 = std::clamp(y - rows - 1, 0, height);
+  r.y1 = std::clamp(y + rows + 3, 0, height);
+  return r;
+}
+
 bool extract_patch(const GrayView& image, float u_px, float v_px, Patch8& out) {
   const int x = static_cast<int>(std::lround(u_px)), y = static_cast<int>(std::lround(v_px));
   if (x < 4 || y < 4 || x + 4 > image.width || y + 4 > image.height) return false;

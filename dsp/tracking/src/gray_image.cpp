@@ -141,6 +141,46 @@ void RemapTable::apply(const GrayView& source, std::uint8_t* out) const {
                     out + at);
 }
 
+void RemapTable::apply_span(const GrayView& source, std::uint8_t* out, std::size_t first,
+                            std::size_t count) const {
+  check(source);
+  const std::size_t end = first + count;
+  if (end > pos_.size()) throw std::invalid_argument("remap: span past the image");
+  if (identity_) {
+    // Rows of the source, then the pixels without a tap (black_ is in pixel order).
+    for (std::size_t i = first; i < end;) {
+      const std::size_t row = i / static_cast<std::size_t>(width_);
+      const std::size_t row_end = std::min(end, (row + 1) * static_cast<std::size_t>(width_));
+      std::memcpy(out + i, source.row(static_cast<int>(row)) + (i - row * width_), row_end - i);
+      i = row_end;
+    }
+    for (auto it = std::lower_bound(black_.begin(), black_.end(), first);
+         it != black_.end() && *it < end; ++it) {
+      out[*it] = 0;
+    }
+    return;
+  }
+  // Through the kernel, but the chunks flagged as reading past the source's end (its
+  // bottom-right corner) through the scalar reference (the same bytes).
+  std::size_t i = first;
+  while (i < end) {
+    const std::size_t c = i / kRemapChunk;
+    std::size_t e = c;  // the chunks from c on that the kernel may read
+    while (e * kRemapChunk < end && chunk_scalar_[e] == 0) ++e;
+    if (e > c) {
+      const std::size_t stop = std::min(end, e * kRemapChunk);
+      remap_taps(source.data, source.stride, pos_.data() + i, weights_.data() + i, stop - i,
+                 out + i);
+      i = stop;
+    } else {
+      const std::size_t stop = std::min(end, (c + 1) * kRemapChunk);
+      remap_taps_scalar(source.data, source.stride, pos_.data() + i, weights_.data() + i,
+                        stop - i, out + i);
+      i = stop;
+    }
+  }
+}
+
 void RemapTable::apply_scalar(const GrayView& source, std::uint8_t* out) const {
   check(source);
   remap_taps_scalar(source.data, source.stride, pos_.data(), weights_.data(), pos_.size(), out);

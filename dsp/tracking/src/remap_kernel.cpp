@@ -46,7 +46,8 @@ void RemapTapsImpl(const std::uint8_t* HWY_RESTRICT src, std::ptrdiff_t stride,
   const auto half = hn::Set(du, 64u);
   const auto* base = reinterpret_cast<const std::int32_t*>(src);
   const auto* below = reinterpret_cast<const std::int32_t*>(src + stride);
-  for (std::size_t i = 0; i < count; i += lanes) {
+  std::size_t i = 0;
+  for (; i + lanes <= count; i += lanes) {
     const auto p = hn::LoadU(du, pos + i);
     const auto w = hn::LoadU(du, weights + i);
     const auto offset = hn::Add(hn::Mul(hn::BitCast(di, hn::ShiftRight<16>(p)), vstride),
@@ -61,6 +62,7 @@ void RemapTapsImpl(const std::uint8_t* HWY_RESTRICT src, std::ptrdiff_t stride,
     const auto result = hn::ShiftRight<7>(hn::Add(sum, half));  // <= 255
     hn::StoreU(hn::DemoteTo(d8, hn::BitCast(di, result)), d8, out + i);
   }
+  for (; i < count; ++i) out[i] = remap_detail::one(src, stride, pos[i], weights[i]);  // the tail
 #endif
 }
 

@@ -109,7 +109,14 @@ struct Tracker::Impl {
   double far_depth_m = 0.0;  // config.far_depth_m, or the rig's 4 px disparity
   SE3d T_body_rect = SE3d::Identity();
   std::array<RemapTable, 2> remap;
-  std::array<GrayImage, 2> rect;   // current rectified left, right
+  std::array<GrayImage, 2> rect;  // current rectified left, right
+  // A distorted rig's right image is rectified on demand: the source, and per row and block of
+  // kRightBlock columns whether it is rectified yet this frame.
+  static constexpr int kRightBlock = 8;
+  GrayView right_source;
+  bool right_lazy = false;  // this frame
+  int right_blocks = 0;     // per row
+  std::vector<std::uint8_t> right_done;
   std::array<Pyramid, 2> pyramid;  // left pyramids: [cur_pyr] this frame, the other the last
   int cur_pyr = 0;
   CornerDetector detector;
@@ -219,7 +226,8 @@ struct Tracker::Impl {
   void rectify(const Image& left, const Image& right);
   bool project(const SE3d& T, const Eigen::Vector3d& p_world, double margin, Eigen::Vector3d& uvr,
                double& depth) const;
-  std::optional<float> right_u(float u, float v, double depth_hint) const;
+  std::optional<float> right_u(float u, float v, double depth_hint);
+  void right_ready(const PixelRect& r);
   std::int32_t new_point(const Eigen::Vector3d& p_world, float sigma, float u, float v);
   void free_point(std::int32_t id);
   int add_stereo_points(bool& map_full);
@@ -310,6 +318,8 @@ Tracker::Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock c
                    std::span<const float>(map_y.ptr<float>(), n), m.width, m.height);
     m.rect[static_cast<std::size_t>(cam)].allocate(m.width, m.height);
   }
+  m.right_blocks = (m.width + Impl::kRightBlock - 1) / Impl::kRightBlock;
+  m.right_done.assign(static_cast<std::size_t>(m.height * m.right_blocks), 0);
   for (Pyramid& p : m.pyramid) p = Pyramid(m.width, m.height, config.pyramid_levels);
   m.detector = CornerDetector(m.width, m.height, config.detector);
   const auto max_tracks = static_cast<std::size_t>(config.max_tracks);
@@ -437,10 +447,40 @@ const char* Tracker::Impl::check(const Image& left, const Image& right) const {
 }
 
 void Tracker::Impl::rectify(const Image& left, const Image& right) {
-  const std::array<const Image*, 2> in{&left, &right};
-  for (std::size_t i = 0; i < 2; ++i) {
-    const Image& im = *in[i];
-    remap[i].apply(GrayView{im.data(), im.width(), im.height(), im.stride_bytes()}, rect[i].data());
+  remap[0].apply(GrayView{left.data(), left.width(), left.height(), left.stride_bytes()},
+                 rect[0].data());
+  right_source = GrayView{right.data(), right.width(), right.height(), right.stride_bytes()};
+  // An identity table copies rows (cheap); a distorted rig's right image is only read along the
+  // rows the stereo search visits, so it is rectified there, on demand (right_ready).
+  right_lazy = config.right_on_demand && !remap[1].identity();
+  if (right_lazy) {
+    std::fill(right_done.begin(), right_done.end(), std::uint8_t{0});
+  } else {
+    remap[1].apply(right_source, rect[1].data());
+  }
+}
+
+/// Rectifies what `r` covers of the right image that is not yet this frame, in whole blocks of
+/// kRightBlock columns (runs of them at a time).
+void Tracker::Impl::right_ready(const PixelRect& r) {
+  if (!right_lazy || r.empty()) return;
+  const auto w = static_cast<std::size_t>(width);
+  const int b0 = r.x0 / kRightBlock, b1 = (r.x1 - 1) / kRightBlock + 1;
+  for (int y = r.y0; y < r.y1; ++y) {
+    std::uint8_t* done = right_done.data() + static_cast<std::ptrdiff_t>(y) * right_blocks;
+    const std::size_t row = static_cast<std::size_t>(y) * w;
+    for (int b = b0; b < b1;) {
+      if (done[b] != 0) {
+        ++b;
+        continue;
+      }
+      int e = b;
+      while (e < b1 && done[e] == 0) done[e++] = 1;
+      const std::size_t x0 = static_cast<std::size_t>(b * kRightBlock);
+      const std::size_t x1 = std::min(w, static_cast<std::size_t>(e * kRightBlock));
+      remap[1].apply_span(right_source, rect[1].data(), row + x0, x1 - x0);
+      b = e;
+    }
   }
 }
 
@@ -454,7 +494,7 @@ bool Tracker::Impl::project(const SE3d& T, const Eigen::Vector3d& p_world, doubl
          uvr.y() < height - 1 - margin;
 }
 
-std::optional<float> Tracker::Impl::right_u(float u, float v, double depth_hint) const {
+std::optional<float> Tracker::Impl::right_u(float u, float v, double depth_hint) {
   int d_min = 0, d_max = 0;
   if (depth_hint > 0.0) {
     const double d = K.f_px * K.baseline_m / depth_hint;
@@ -467,6 +507,7 @@ std::optional<float> Tracker::Impl::right_u(float u, float v, double depth_hint)
     d_min = 0;
     d_max = static_cast<int>(std::ceil(K.f_px * K.baseline_m / config.min_depth_m));
   }
+  right_ready(match_along_row_reads(width, height, u, v, d_min, d_max, config.stereo));
   const std::optional<float> d =
       match_along_row(rect[0].view(), rect[1].view(), u, v, d_min, d_max, config.stereo);
   if (!d) return std::nullopt;

@@ -87,6 +87,19 @@ std::optional<float> match_along_row(const GrayView& left, const GrayView& right
                                      float v_px, int d_min, int d_max,
                                      const StereoMatchParams& params);
 
+/// A rectangle of pixels: columns [x0, x1), rows [y0, y1).
+struct PixelRect {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  [[nodiscard]] bool empty() const { return x1 <= x0 || y1 <= y0; }
+};
+
+/// The part of the right image (width x height) that match_along_row reads with these
+/// arguments, with a margin, clamped to the image: the row search, the left-right check and the
+/// sub-pixel refinement. A caller that rectifies the right image on demand makes just this part
+/// ready first.
+PixelRect match_along_row_reads(int width, int height, float u_px, float v_px, int d_min, int d_max,
+                                const StereoMatchParams& params);
+
 /// An 8x8 patch around a pixel, kept with a map point for re-finding it later.
 struct Patch8 {
   std::uint8_t px[64] = {};

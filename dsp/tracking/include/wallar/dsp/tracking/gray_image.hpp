@@ -102,6 +102,11 @@ class RemapTable {
   RemapTable(int width, int height, std::span<const float> map_x, std::span<const float> map_y,
              int source_width, int source_height);
   void apply(const GrayView& source, std::uint8_t* out) const;
+  /// The output pixels [first, first + count) (row-major: y * width + x) only, with the bytes
+  /// apply() gives them; the rest of `out` is left alone. For rectifying on demand the part of
+  /// an image a search reads. `first + count` must not pass width * height.
+  void apply_span(const GrayView& source, std::uint8_t* out, std::size_t first,
+                  std::size_t count) const;
   /// The same through the scalar reference only (tests and benchmarks compare the two).
   void apply_scalar(const GrayView& source, std::uint8_t* out) const;
   [[nodiscard]] int width() const { return width_; }

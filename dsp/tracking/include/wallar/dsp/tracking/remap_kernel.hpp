@@ -21,7 +21,8 @@
 
 namespace wallar::dsp {
 
-/// Remaps `count` taps (a multiple of kRemapChunk) from `src` (row pitch `stride`) into out.
+/// Remaps `count` taps from `src` (row pitch `stride`) into out: whole vectors in SIMD, the
+/// last count % lanes taps in scalar code (the same bytes).
 void remap_taps(const std::uint8_t* src, std::ptrdiff_t stride, const std::uint32_t* pos,
                 const std::uint32_t* weights, std::size_t count, std::uint8_t* out);
 
@@ -29,7 +30,8 @@ void remap_taps(const std::uint8_t* src, std::ptrdiff_t stride, const std::uint3
 void remap_taps_scalar(const std::uint8_t* src, std::ptrdiff_t stride, const std::uint32_t* pos,
                        const std::uint32_t* weights, std::size_t count, std::uint8_t* out);
 
-/// Taps per chunk: a multiple of every target's lane count (up to 2048-bit SVE).
+/// Taps per chunk of RemapTable's safety flags: a multiple of every target's lane count (up to
+/// 2048-bit SVE).
 inline constexpr std::size_t kRemapChunk = 64;
 
 }  // namespace wallar::dsp

@@ -129,6 +129,9 @@ struct TrackerConfig {
   /// tracked poses: the average of gravity_average_frames frames' estimates, each one further
   /// than gravity_gate_m_s2 from it dropped (a pose that jumped).
   bool accel_prediction = true;
+  /// A distorted rig's right image is rectified only where the stereo search reads it (the
+  /// same bytes there; false: all of it every frame, as a reference).
+  bool right_on_demand = true;
   int gravity_average_frames = 100;
   double gravity_gate_m_s2 = 4.0;
   DetectorParams detector{.bucket_px = 32};
