@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <random>
 #include <vector>
 
 #include "wallar/dsp/imu/gyro_integration.hpp"
@@ -194,6 +195,36 @@ TEST(AccelPrediction, AQuickTurnsSwingIsPredictedThroughTheSpecificForce) {
       "velocity max %.2f mm, gravity err max %.3f m/s^2 (noisy %.3f)\n",
       exact.turn_frames, exact.accel_max_mm, noisy.accel_max_mm, noisy.accel_rms_mm,
       exact.constant_velocity_max_mm, exact.gravity_max_err_m_s2, noisy.gravity_max_err_m_s2);
+}
+
+TEST(AccelPrediction, AFirstGravityTakenWhileTheHeadAcceleratedIsAveragedAwayAndLaterJumpsGated) {
+  const Eigen::Vector3d g(0.0, 0.0, -9.81);
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> noise(0.0, 1.0);  // one frame's estimate: about 1 m/s^2
+  const auto estimate = [&] {
+    return Eigen::Vector3d(g + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+  };
+  // The first estimate (the specific force alone) taken in a 6 m/s^2 swing of the head.
+  dsp::GravityEstimate gravity(100, 4.0, 20);
+  EXPECT_TRUE(gravity.add(g + Eigen::Vector3d(6.0, 0.0, 0.0)));
+  // The right ones are not shut out by it (all further than the gate from the first).
+  int kept = 0;
+  for (int k = 0; k < 200; ++k) kept += gravity.add(estimate()) ? 1 : 0;
+  EXPECT_GE(kept, 195);
+  EXPECT_LT((gravity.value() - g).norm(), 0.3);
+  // Once averaged, a pose that jumped (a relocalisation) is dropped.
+  const Eigen::Vector3d before = gravity.value();
+  EXPECT_FALSE(gravity.add(g + Eigen::Vector3d(0.0, 9.0, 0.0)));
+  EXPECT_FALSE(gravity.add(Eigen::Vector3d(NAN, 0.0, 0.0)));
+  EXPECT_EQ(gravity.value(), before);
+  // A correction turning the world turns gravity with it; a reset starts again.
+  gravity.rotate(Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitX()).toRotationMatrix());
+  EXPECT_NEAR(gravity.value().norm(), before.norm(), 1e-12);
+  EXPECT_GT((gravity.value() - before).norm(), 0.5);
+  gravity.reset();
+  EXPECT_EQ(gravity.samples(), 0);
+  EXPECT_TRUE(gravity.add(g));
+  EXPECT_EQ(gravity.value(), g);
 }
 
 TEST(MotionPrior, TheGyrosTrustShrinksWithTheTimeSinceTheLastTrackedFrame) {

@@ -3,6 +3,8 @@
 /// @brief Preintegrated specific force joined to solved poses: velocity, position, gravity.
 #include "wallar/dsp/tracking/accel_prediction.hpp"
 
+#include <algorithm>
+
 namespace wallar::dsp {
 namespace {
 
@@ -44,6 +46,16 @@ Eigen::Vector3d gravity_from_poses(const SE3d& T_world_imu0, const SE3d& T_world
   const Eigen::Vector3d before = start_velocity_without_gravity(T_world_imu0, T_world_imu1, first) +
                                  T_world_imu0.linear() * first.dv_m_s;
   return 2.0 * (after - before) / (first.dt_s + second.dt_s);
+}
+
+bool GravityEstimate::add(const Eigen::Vector3d& g_world_m_s2) {
+  if (!g_world_m_s2.allFinite()) return false;
+  if (samples_ >= gate_after_ && (g_world_m_s2 - g_).norm() > gate_m_s2_) return false;
+  if (samples_ == 0) g_.setZero();
+  const double alpha = 1.0 / std::min<double>(samples_ + 1, std::max(1, average_frames_));
+  g_ += alpha * (g_world_m_s2 - g_);
+  ++samples_;
+  return true;
 }
 
 }  // namespace wallar::dsp

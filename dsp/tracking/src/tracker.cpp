@@ -169,8 +169,7 @@ struct Tracker::Impl {
   SE3d T_cw_before = SE3d::Identity();  // the frame before the last one's
   bool accel_last = false;  // the last interval was tracked at both ends, with its specific force
   SpecificForceInterval last_force;
-  Eigen::Vector3d g_world = Eigen::Vector3d::Zero();  // gravity in the map's world [m/s^2]
-  int g_samples = 0;
+  GravityEstimate gravity{100, 4.0, 20};  // in the map's world; sized from the config
 
   std::int64_t now() const { return clock != nullptr ? clock() : 0; }
   /// solve() holds the rotation near the gyro's this frame.
@@ -254,34 +253,28 @@ struct Tracker::Impl {
 /// goes on at its last velocity, plus gravity and its specific force over the interval, and the
 /// camera sits where the gyro's rotation puts it about the IMU. `prior` keeps its rotation.
 void Tracker::Impl::predict_centre(const RotationPrior& imu, double dt_s, SE3d& prior) const {
-  if (!imu.accel_valid || !accel_last || g_samples == 0 || !(dt_s > 0.0)) return;
+  if (!imu.accel_valid || !accel_last || gravity.samples() == 0 || !(dt_s > 0.0)) return;
   const SpecificForceInterval next{imu.dv_imu_m_s, imu.dp_imu_m, dt_s};
   const Eigen::Vector3d p_imu = predict_imu_position(
-      T_world_imu(T_cw_before), T_world_imu(T_cw_last), last_force, next, g_world);
+      T_world_imu(T_cw_before), T_world_imu(T_cw_last), last_force, next, gravity.value());
   // T_world_cam = T_world_imu T_imu_rect: the camera's centre from the IMU's.
   const Eigen::Vector3d c = p_imu - prior.linear().transpose() * T_rect_imu.translation();
   prior.translation() = -prior.linear() * c;
 }
 
-/// Gravity in the map's world: the first estimate from the specific force alone (at rest at
-/// the start it is minus gravity), then the average of gravity_average_frames frames'
-/// estimates from the poses (gravity_from_poses), an estimate far from it dropped (a pose that
-/// jumped: a relocalisation, a correction).
+/// Gravity in the map's world (GravityEstimate): the first estimate from the specific force
+/// alone (at rest at the start it is minus gravity), then the estimates from the poses
+/// (gravity_from_poses).
 void Tracker::Impl::learn_gravity(const RotationPrior& imu, double dt_s) {
   if (!imu.accel_valid || !(dt_s > 0.0)) return;
-  if (g_samples == 0) {
-    g_world = -T_world_imu(T_cw_last).linear() * imu.dv_imu_m_s / dt_s;
-    g_samples = 1;
+  if (gravity.samples() == 0) {
+    gravity.add(-T_world_imu(T_cw_last).linear() * imu.dv_imu_m_s / dt_s);
     return;
   }
   if (!accel_last) return;
-  const Eigen::Vector3d g =
-      gravity_from_poses(T_world_imu(T_cw_before), T_world_imu(T_cw_last), T_world_imu(T_cw),
-                         last_force, SpecificForceInterval{imu.dv_imu_m_s, imu.dp_imu_m, dt_s});
-  if (!g.allFinite() || (g - g_world).norm() > config.gravity_gate_m_s2) return;
-  const double alpha = 1.0 / std::min<double>(g_samples + 1, config.gravity_average_frames);
-  g_world += alpha * (g - g_world);
-  ++g_samples;
+  gravity.add(gravity_from_poses(T_world_imu(T_cw_before), T_world_imu(T_cw_last),
+                                 T_world_imu(T_cw), last_force,
+                                 SpecificForceInterval{imu.dv_imu_m_s, imu.dp_imu_m, dt_s}));
 }
 
 Tracker::Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock clock)
@@ -308,6 +301,8 @@ Tracker::Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock c
   }
   m.T_body_rect = rig.cams[0].T_body_cam * T_cam0_rect;
   m.T_rect_imu = m.T_body_rect.inverse() * rig.imu.T_body_imu;
+  m.gravity = GravityEstimate(config.gravity_average_frames, config.gravity_gate_m_s2,
+                              config.gravity_gate_after_frames);
   for (int cam = 0; cam < 2; ++cam) {
     cv::Mat map_x, map_y;
     cv::initUndistortRectifyMap(rectifier.K(cam), rectifier.dist(cam), rectifier.R(cam),
@@ -405,7 +400,7 @@ void Tracker::reset() {
   m.state = TrackingState::kInitialising;
   m.T_cw = m.T_cw_last = m.velocity = m.T_cw_before = SE3d::Identity();
   m.accel_last = false;
-  m.g_samples = 0;
+  m.gravity.reset();
   m.message_pending = false;
 }
 
@@ -1195,7 +1190,7 @@ void Tracker::apply(const MapCorrection& correction) {
       m.T_cw = orthonormalised(m.T_cw * shift.inverse());
       m.T_cw_last = orthonormalised(m.T_cw_last * shift.inverse());
       m.T_cw_before = orthonormalised(m.T_cw_before * shift.inverse());
-      m.g_world = shift.linear() * m.g_world;
+      m.gravity.rotate(shift.linear());
     }
     k->T_world_cam = c.T_world_cam;
   }

@@ -49,4 +49,29 @@ struct SpecificForceInterval {
                                                  const SpecificForceInterval& first,
                                                  const SpecificForceInterval& second);
 
+/// Gravity in a map's world, averaged over per-frame estimates: the running mean of the first
+/// `average_frames`, then an exponential average over that many. Once `gate_after` estimates are
+/// in, one further than `gate_m_s2` from the average is dropped (a pose that jumped: a
+/// relocalisation, a correction); not before, so a first estimate taken while the head
+/// accelerated cannot shut out the right ones.
+class GravityEstimate {
+ public:
+  GravityEstimate(int average_frames, double gate_m_s2, int gate_after)
+      : average_frames_(average_frames), gate_m_s2_(gate_m_s2), gate_after_(gate_after) {}
+  /// Adds one estimate; false when it was dropped (not finite, or gated).
+  bool add(const Eigen::Vector3d& g_world_m_s2);
+  void reset() { samples_ = 0; }
+  /// Turns the estimate with the world (a correction moved the map by R_new_old).
+  void rotate(const Eigen::Matrix3d& R_new_old) { g_ = R_new_old * g_; }
+  [[nodiscard]] int samples() const { return samples_; }
+  [[nodiscard]] const Eigen::Vector3d& value() const { return g_; }
+
+ private:
+  Eigen::Vector3d g_ = Eigen::Vector3d::Zero();
+  int samples_ = 0;
+  int average_frames_;
+  double gate_m_s2_;
+  int gate_after_;
+};
+
 }  // namespace wallar::dsp

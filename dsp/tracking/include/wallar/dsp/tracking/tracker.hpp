@@ -127,13 +127,15 @@ struct TrackerConfig {
   /// With the accelerometer's specific force in the prior (RotationPrior::accel_valid), the
   /// camera centre is predicted through the head's accelerations, with gravity learnt from the
   /// tracked poses: the average of gravity_average_frames frames' estimates, each one further
-  /// than gravity_gate_m_s2 from it dropped (a pose that jumped).
+  /// than gravity_gate_m_s2 from it dropped (a pose that jumped) once gravity_gate_after_frames
+  /// are in it.
   bool accel_prediction = true;
+  int gravity_average_frames = 100;
+  double gravity_gate_m_s2 = 4.0;
+  int gravity_gate_after_frames = 20;
   /// A distorted rig's right image is rectified only where the stereo search reads it (the
   /// same bytes there; false: all of it every frame, as a reference).
   bool right_on_demand = true;
-  int gravity_average_frames = 100;
-  double gravity_gate_m_s2 = 4.0;
   DetectorParams detector{.bucket_px = 32};
   KltParams klt;
   StereoMatchParams stereo;
