@@ -108,37 +108,7 @@ void RemapTable::check(const GrayView& source) const {
 }
 
 void RemapTable::apply(const GrayView& source, std::uint8_t* out) const {
-  check(source);
-  if (identity_) {
-    // What the taps give: each pixel itself, those on the last column and row without a tap
-    // black.
-    for (int y = 0; y < height_; ++y) {
-      std::memcpy(out + static_cast<std::ptrdiff_t>(y) * width_, source.row(y),
-                  static_cast<std::size_t>(width_));
-    }
-    for (const std::uint32_t i : black_) out[i] = 0;
-    return;
-  }
-  const std::size_t n = pos_.size(), full = n / kRemapChunk;
-  std::size_t c = 0;
-  while (c < full) {
-    std::size_t e = c;
-    while (e < full && chunk_scalar_[e] == 0) ++e;
-    if (e > c) {
-      const std::size_t at = c * kRemapChunk;
-      remap_taps(source.data, source.stride, pos_.data() + at, weights_.data() + at,
-                 (e - c) * kRemapChunk, out + at);
-      c = e;
-    } else {
-      const std::size_t at = c * kRemapChunk;
-      remap_taps_scalar(source.data, source.stride, pos_.data() + at, weights_.data() + at,
-                        kRemapChunk, out + at);
-      ++c;
-    }
-  }
-  const std::size_t at = full * kRemapChunk;
-  remap_taps_scalar(source.data, source.stride, pos_.data() + at, weights_.data() + at, n - at,
-                    out + at);
+  apply_span(source, out, 0, pos_.size());
 }
 
 void RemapTable::apply_span(const GrayView& source, std::uint8_t* out, std::size_t first,
@@ -147,7 +117,8 @@ void RemapTable::apply_span(const GrayView& source, std::uint8_t* out, std::size
   const std::size_t end = first + count;
   if (end > pos_.size()) throw std::invalid_argument("remap: span past the image");
   if (identity_) {
-    // Rows of the source, then the pixels without a tap (black_ is in pixel order).
+    // What the taps give: each pixel itself (rows of the source), those on the last column and
+    // row without a tap black (black_ is in pixel order).
     for (std::size_t i = first; i < end;) {
       const std::size_t row = i / static_cast<std::size_t>(width_);
       const std::size_t row_end = std::min(end, (row + 1) * static_cast<std::size_t>(width_));
