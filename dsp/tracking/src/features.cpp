@@ -88,6 +88,23 @@ float parabola_peak(float a, float b, float c) {
 /// offset between the cameras' exposures does not bias it), from the integer match's parabola
 /// estimate. The SAD parabola locks toward whole pixels; this does not. Returns the refined
 /// disparity, or `d0` when the refinement leaves +-1 px of it or the window has no gradient.
+/// What a row search covers: its window's half size, the left pixel, and the disparity range
+/// kept inside the row and the kernel's 512 candidates (match_along_row and the footprint it
+/// reads, match_along_row_reads, from the same numbers).
+struct RowSearch {
+  int hw, xl, y, d_min, d_max;
+};
+RowSearch row_search_of(float u_px, float v_px, int d_min, int d_max,
+                        const StereoMatchParams& params) {
+  RowSearch r;
+  r.hw = std::clamp(params.half_window, 1, kRowZsadMaxHalfWindow);
+  r.xl = static_cast<int>(std::lround(u_px));
+  r.y = static_cast<int>(std::lround(v_px));
+  r.d_min = std::max(d_min, 0);
+  r.d_max = std::min({d_max, r.xl - r.hw - 1, r.d_min + 511});
+  return r;
+}
+
 float refine_disparity(const GrayView& left, const GrayView& right, float u_px, int y, int hw,
                        float d0) {
   constexpr int kHw = 4;  // 9x9 window for the refinement
@@ -267,16 +284,12 @@ float shi_tomasi_score(const GrayView& image, int x, int y, int half) {
 }
 
 std::optional<float> match_along_row(const GrayView& left, const GrayView& right, float u_px,
-                                     float v_px, int d_min, int d_max,
+                                     float v_px, int d_min_px, int d_max_px,
                                      const StereoMatchParams& params) {
-  const int hw = std::clamp(params.half_window, 1, kRowZsadMaxHalfWindow);
-  const int xl = static_cast<int>(std::lround(u_px));
-  const int y = static_cast<int>(std::lround(v_px));
+  const auto [hw, xl, y, d_min, d_max] = row_search_of(u_px, v_px, d_min_px, d_max_px, params);
   if (y - hw - 1 < 0 || y + hw + 1 >= left.height || xl - hw < 0 || xl + hw >= left.width) {
     return std::nullopt;
   }
-  d_min = std::max(d_min, 0);
-  d_max = std::min({d_max, xl - hw - 1, d_min + 511});
   if (d_max - d_min < 2) return std::nullopt;
   // Integer costs (n^2 times the zero-mean SAD per pixel) from the SIMD row kernel: the
   // candidates x = xl - d_max .. xl - d_min of the right row, so cost index d_max - d.
@@ -327,13 +340,9 @@ std::optional<float> match_along_row(const GrayView& left, const GrayView& right
   return disparity;
 }
 
-PixelRect match_along_row_reads(int width, int height, float u_px, float v_px, int d_min, int d_max,
-                                const StereoMatchParams& params) {
-  const int hw = std::clamp(params.half_window, 1, kRowZsadMaxHalfWindow);
-  const int xl = static_cast<int>(std::lround(u_px));
-  const int y = static_cast<int>(std::lround(v_px));
-  d_min = std::max(d_min, 0);
-  d_max = std::min({d_max, xl - hw - 1, d_min + 511});
+PixelRect match_along_row_reads(int width, int height, float u_px, float v_px, int d_min_px,
+                                int d_max_px, const StereoMatchParams& params) {
+  const auto [hw, xl, y, d_min, d_max] = row_search_of(u_px, v_px, d_min_px, d_max_px, params);
   // The row kernels read xl - d_max - hw .. xl - d_min + hw over rows y +- hw. The refinement
   // (9x9, its disparity within 1 px of the match's, itself within 1 px of [d_min, d_max]) reads
   // a column more on each side and their bilinear neighbours: xl - d_max - 8 .. xl - d_min + 8,
