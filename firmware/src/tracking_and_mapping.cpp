@@ -128,7 +128,7 @@ dsp::RotationPrior TrackingAndMapping::gyro_prior(TimeNs t_ns) {
   prior.q_prev_cur = (q_rect_imu * delta.q_start_end * q_rect_imu.conjugate()).normalized();
   prior.valid = true;
   prior.bias_corrected = gyro_bias_known_;
-  prior.accel_valid = options_.use_accel;
+  prior.accel_valid = true;  // whether it is used: TrackerConfig::accel_prediction
   prior.dv_imu_m_s = delta.dv_m_s;
   prior.dp_imu_m = delta.dp_m;
   return prior;

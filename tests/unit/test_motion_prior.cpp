@@ -205,7 +205,7 @@ TEST(AccelPrediction, AFirstGravityTakenWhileTheHeadAcceleratedIsAveragedAwayAnd
     return Eigen::Vector3d(g + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
   };
   // The first estimate (the specific force alone) taken in a 6 m/s^2 swing of the head.
-  dsp::GravityEstimate gravity(100, 4.0, 20);
+  dsp::GravityEstimate gravity({.average_frames = 100, .gate_m_s2 = 4.0, .gate_after = 20});
   EXPECT_TRUE(gravity.add(g + Eigen::Vector3d(6.0, 0.0, 0.0)));
   // The right ones are not shut out by it (all further than the gate from the first).
   int kept = 0;

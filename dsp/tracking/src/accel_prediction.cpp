@@ -50,9 +50,11 @@ Eigen::Vector3d gravity_from_poses(const SE3d& T_world_imu0, const SE3d& T_world
 
 bool GravityEstimate::add(const Eigen::Vector3d& g_world_m_s2) {
   if (!g_world_m_s2.allFinite()) return false;
-  if (samples_ >= gate_after_ && (g_world_m_s2 - g_).norm() > gate_m_s2_) return false;
+  if (samples_ >= params_.gate_after && (g_world_m_s2 - g_).norm() > params_.gate_m_s2) {
+    return false;
+  }
   if (samples_ == 0) g_.setZero();
-  const double alpha = 1.0 / std::min<double>(samples_ + 1, std::max(1, average_frames_));
+  const double alpha = 1.0 / std::min<double>(samples_ + 1, std::max(1, params_.average_frames));
   g_ += alpha * (g_world_m_s2 - g_);
   ++samples_;
   return true;

@@ -145,8 +145,8 @@ void RemapTable::apply_span(const GrayView& source, std::uint8_t* out, std::size
       i = stop;
     } else {
       const std::size_t stop = std::min(end, (c + 1) * kRemapChunk);
-      remap_taps_scalar(source.data, source.stride, pos_.data() + i, weights_.data() + i,
-                        stop - i, out + i);
+      remap_taps_scalar(source.data, source.stride, pos_.data() + i, weights_.data() + i, stop - i,
+                        out + i);
       i = stop;
     }
   }

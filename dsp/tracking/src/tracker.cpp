@@ -169,7 +169,7 @@ struct Tracker::Impl {
   SE3d T_cw_before = SE3d::Identity();  // the frame before the last one's
   bool accel_last = false;  // the last interval was tracked at both ends, with its specific force
   SpecificForceInterval last_force;
-  GravityEstimate gravity{100, 4.0, 20};  // in the map's world; sized from the config
+  GravityEstimate gravity;  // in the map's world
 
   std::int64_t now() const { return clock != nullptr ? clock() : 0; }
   /// solve() holds the rotation near the gyro's this frame.
@@ -301,8 +301,7 @@ Tracker::Tracker(const RigCalibration& rig, const TrackerConfig& config, Clock c
   }
   m.T_body_rect = rig.cams[0].T_body_cam * T_cam0_rect;
   m.T_rect_imu = m.T_body_rect.inverse() * rig.imu.T_body_imu;
-  m.gravity = GravityEstimate(config.gravity_average_frames, config.gravity_gate_m_s2,
-                              config.gravity_gate_after_frames);
+  m.gravity = GravityEstimate(config.gravity);
   for (int cam = 0; cam < 2; ++cam) {
     cv::Mat map_x, map_y;
     cv::initUndistortRectifyMap(rectifier.K(cam), rectifier.dist(cam), rectifier.R(cam),

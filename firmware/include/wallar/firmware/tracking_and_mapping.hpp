@@ -47,9 +47,6 @@ struct TrackingOptions {
   dsp::MapperConfig mapper;
   bool mapping_thread = true;  //!< false: lock step (repeatable)
   bool use_gyro = true;
-  /// The accelerometer's integrated specific force goes with the gyro's rotation (the
-  /// tracker predicts the camera centre through the head's accelerations).
-  bool use_accel = true;
   int imu_capacity = 4096;  //!< gyro samples kept between frames
   /// A global bundle adjustment after every this many key-frames while tracking (0: only the
   /// one finish() runs). Off: the threaded mode ran one whenever the mapper was idle after 5

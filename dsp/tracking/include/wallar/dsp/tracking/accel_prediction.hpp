@@ -9,7 +9,7 @@
 /// to p1 = p0 + v0 dt + g dt^2 / 2 + R0 dp, and its velocity becomes v1 = v0 + g dt + R0 dv.
 /// With two solved poses per interval the velocities, and from three poses gravity, follow.
 ///
-/// Threading: pure functions; nothing allocates.
+/// Threading: pure functions and a value class (GravityEstimate, one owner); nothing allocates.
 #pragma once
 
 #include <Eigen/Core>
@@ -49,6 +49,13 @@ struct SpecificForceInterval {
                                                  const SpecificForceInterval& first,
                                                  const SpecificForceInterval& second);
 
+/// How GravityEstimate averages and gates.
+struct GravityParams {
+  int average_frames = 100;
+  double gate_m_s2 = 4.0;
+  int gate_after = 20;
+};
+
 /// Gravity in a map's world, averaged over per-frame estimates: the running mean of the first
 /// `average_frames`, then an exponential average over that many. Once `gate_after` estimates are
 /// in, one further than `gate_m_s2` from the average is dropped (a pose that jumped: a
@@ -56,8 +63,7 @@ struct SpecificForceInterval {
 /// accelerated cannot shut out the right ones.
 class GravityEstimate {
  public:
-  GravityEstimate(int average_frames, double gate_m_s2, int gate_after)
-      : average_frames_(average_frames), gate_m_s2_(gate_m_s2), gate_after_(gate_after) {}
+  explicit GravityEstimate(const GravityParams& params = {}) : params_(params) {}
   /// Adds one estimate; false when it was dropped (not finite, or gated).
   bool add(const Eigen::Vector3d& g_world_m_s2);
   void reset() { samples_ = 0; }
@@ -67,11 +73,9 @@ class GravityEstimate {
   [[nodiscard]] const Eigen::Vector3d& value() const { return g_; }
 
  private:
+  GravityParams params_;
   Eigen::Vector3d g_ = Eigen::Vector3d::Zero();
   int samples_ = 0;
-  int average_frames_;
-  double gate_m_s2_;
-  int gate_after_;
 };
 
 }  // namespace wallar::dsp

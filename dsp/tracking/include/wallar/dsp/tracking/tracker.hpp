@@ -38,6 +38,7 @@
 #include "wallar/core/image.hpp"
 #include "wallar/core/pose.hpp"
 #include "wallar/core/time.hpp"
+#include "wallar/dsp/tracking/accel_prediction.hpp"
 #include "wallar/dsp/tracking/features.hpp"
 #include "wallar/dsp/tracking/fixed_vector.hpp"
 #include "wallar/dsp/tracking/gray_image.hpp"
@@ -126,13 +127,9 @@ struct TrackerConfig {
   double gyro_sigma_interval_s = 0.05;
   /// With the accelerometer's specific force in the prior (RotationPrior::accel_valid), the
   /// camera centre is predicted through the head's accelerations, with gravity learnt from the
-  /// tracked poses: the average of gravity_average_frames frames' estimates, each one further
-  /// than gravity_gate_m_s2 from it dropped (a pose that jumped) once gravity_gate_after_frames
-  /// are in it.
+  /// tracked poses (GravityEstimate: averaged, and gated once enough are in).
   bool accel_prediction = true;
-  int gravity_average_frames = 100;
-  double gravity_gate_m_s2 = 4.0;
-  int gravity_gate_after_frames = 20;
+  GravityParams gravity;
   /// A distorted rig's right image is rectified only where the stereo search reads it (the
   /// same bytes there; false: all of it every frame, as a reference).
   bool right_on_demand = true;
